@@ -1,0 +1,45 @@
+"""The ``retime`` command line. Each command lives in its own module with ``register(subparsers)``."""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from ..errors import RetimeError
+
+COMMANDS = ["info", "convert", "linear"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="retime",
+        description="Change the timing of character motion (BVH, ASF/AMC) without touching its poses.",
+        epilog="Run 'retime COMMAND --help' for a command's options and an example.",
+    )
+    from .. import __version__
+
+    parser.add_argument("--version", action="version", version=f"retime {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMANDS:
+        importlib.import_module(f"{__name__}.{name}").register(sub)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except RetimeError as e:
+        print(f"retime {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"retime {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

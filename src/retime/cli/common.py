@@ -1,0 +1,80 @@
+"""Options and helpers shared by the commands."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..errors import RetimeError
+from ..io_util import check_not_input
+from ..motion import load_motion, save_bvh
+from ..warp import TimingCurve, keytime_warp, scale_warp, snap_duration
+
+
+def add_motion_args(p):
+    p.add_argument("motion", metavar="MOTION", help="input motion (.bvh, or .amc with its .asf beside it)")
+    p.add_argument("--asf", metavar="SKELETON.asf", help="skeleton for an .amc file (default: X.asf beside X_NN.amc)")
+    p.add_argument("--fps", type=positive_float, metavar="HZ",
+                   help="input frame rate (AMC files carry none: default 120 Hz; overrides a BVH's Frame Time)")
+
+
+def add_output_args(p):
+    p.add_argument("-o", "--output", required=True, metavar="OUT.bvh", help="retimed motion to write (BVH)")
+    p.add_argument("--warp", metavar="WARP.csv", help="also write the timing curve (output_time,source_time per output frame)")
+
+
+def add_duration_args(p, free=False):
+    g = p.add_mutually_exclusive_group(required=False)
+    g.add_argument("--duration", type=positive_float, metavar="SEC", help="output duration in seconds")
+    g.add_argument("--scale", type=positive_float, metavar="X",
+                   help="output lasts X times as long as the input (0.5 = twice as fast)")
+    if free:
+        g.add_argument("--free", action="store_true", help="let the method choose the duration")
+    p.add_argument("--keytime", action="append", default=[], type=keytime, metavar="SRC=DST",
+                   help="source time SRC (s) plays at output time DST (s); repeat for several")
+
+
+def positive_float(text):
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (v > 0) or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text}")
+    return v
+
+
+def keytime(text):
+    try:
+        a, b = text.split("=")
+        return float(a), float(b)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"keytime must look like SRC=DST in seconds (e.g. 1.2=0.8), got {text!r}") from None
+
+
+def load_input(args):
+    return load_motion(args.motion, fps=args.fps, asf=args.asf)
+
+
+def check_output(args, suffixes=(".bvh",)):
+    if Path(args.output).suffix.lower() not in suffixes:
+        raise RetimeError(f"{args.output}: output must end in {' or '.join(suffixes)}")
+    check_not_input(args.output, args.motion, getattr(args, "asf", None))
+    if getattr(args, "warp", None):
+        check_not_input(args.warp, args.motion, args.output)
+
+
+def target_duration(args, motion):
+    """Output duration from --duration / --scale (None if neither), on the output frame grid."""
+    if getattr(args, "duration", None) is not None:
+        return snap_duration(args.duration, motion.fps)
+    if getattr(args, "scale", None) is not None:
+        return scale_warp(motion.duration, args.scale, motion.fps).duration
+    return None
+
+
+def write_outputs(args, motion, curve: TimingCurve, retimed):
+    save_bvh(retimed, args.output)
+    if args.warp:
+        curve.to_csv(args.warp, retimed.fps)
+    print(f"wrote {args.output}: {retimed.n_frames} frames, {retimed.duration:.3f} s "
+          f"(source {motion.duration:.3f} s)" + (f"; warp {args.warp}" if args.warp else ""))

@@ -1,0 +1,386 @@
+"""Acclaim ASF (skeleton) and AMC (motion) reading, as CMU writes them.
+
+ASF conventions handled: ``:units`` (``length 0.45`` means one unit is 1/0.45 inch; retime works in
+metres), ``angle deg|rad``, bone ``axis`` angles with their order, per-bone ``dof`` subsets and
+``limits``, root ``order``/``axis``/``position``/``orientation``. AMC: ``:FULLY-SPECIFIED``,
+``:DEGREES``/``:RADIANS``, one block per frame. AMC files carry no frame rate: 120 Hz (CMU's) unless
+given.
+
+Conversion to retime's model: a joint sits at the start of its bone; its rest offset is the parent
+bone's vector (direction * length); its local rotation, expressed in the world-aligned rest frame, is
+C M C^-1, with C the bone's ``axis`` rotation and M the AMC dof rotation (applied in dof order).
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..errors import FormatError
+from .bvh import read_text
+from .model import Motion, Skeleton
+
+INCH = 0.0254
+CMU_FPS = 120.0
+_DOF_NAMES = ("rx", "ry", "rz", "tx", "ty", "tz", "l")
+
+
+class AsfBone:
+    def __init__(self, lineno):
+        self.lineno = lineno
+        self.name = None
+        self.direction = None
+        self.length = None
+        self.axis = np.zeros(3)
+        self.axis_order = "XYZ"
+        self.dof = []
+        self.limits = []
+
+
+class Asf:
+    """A parsed ASF file: the skeleton in metres plus what AMC reading needs."""
+
+    def __init__(self, path, skeleton, bones, root_order, angle_scale, length_scale, c_rot):
+        self.path = path
+        self.skeleton = skeleton
+        self.bones = bones  # name -> AsfBone (root included as a pseudo bone)
+        self.root_order = root_order
+        self.angle_scale = angle_scale  # multiply file angles by this to get radians
+        self.length_scale = length_scale  # multiply file lengths by this to get metres
+        self.c_rot = c_rot  # joint index -> Rotation (bone axis)
+
+
+def _section_lines(text):
+    return [(i + 1, ln.strip()) for i, ln in enumerate(text.splitlines())
+            if ln.strip() and not ln.strip().startswith("#")]
+
+
+def read_asf(path) -> Asf:
+    text = read_text(path)
+    lines = _section_lines(text)
+    if not any(ln.startswith(":bonedata") for _, ln in lines):
+        raise FormatError(path, "no :bonedata section; not an ASF skeleton file?")
+    length_unit = 1.0
+    angle_scale = np.pi / 180.0
+    root_order, root_axis = ["TX", "TY", "TZ", "RX", "RY", "RZ"], "XYZ"
+    root_position = np.zeros(3)
+    root_orientation = np.zeros(3)
+    bones = {}
+    hierarchy = []
+    section = None
+    bone = None
+    in_limits = False
+    for lineno, line in lines:
+        tokens = line.split()
+        if line.startswith(":"):
+            section = tokens[0].lower()
+            if section == ":name" or section == ":version":
+                section = None
+            in_limits = False
+            continue
+        try:
+            if section == ":units":
+                key = tokens[0].lower()
+                if key == "length":
+                    length_unit = float(tokens[1])
+                elif key == "angle":
+                    angle_scale = 1.0 if tokens[1].lower().startswith("rad") else np.pi / 180.0
+            elif section == ":root":
+                key = tokens[0].lower()
+                if key == "order":
+                    root_order = [t.upper() for t in tokens[1:]]
+                elif key == "axis":
+                    root_axis = tokens[1].upper()
+                elif key == "position":
+                    root_position = np.array([float(t) for t in tokens[1:4]])
+                elif key == "orientation":
+                    root_orientation = np.array([float(t) for t in tokens[1:4]])
+            elif section == ":bonedata":
+                key = tokens[0].lower()
+                if key == "begin":
+                    bone = AsfBone(lineno)
+                    in_limits = False
+                elif key == "end":
+                    if bone is None:
+                        raise FormatError(path, "'end' without 'begin' in :bonedata", lineno)
+                    for attr in ("name", "direction", "length"):
+                        if getattr(bone, attr) is None:
+                            raise FormatError(path, f"bone starting here has no {attr}", bone.lineno)
+                    if bone.name in bones:
+                        raise FormatError(path, f"bone {bone.name!r} defined twice", bone.lineno)
+                    bones[bone.name] = bone
+                    bone = None
+                elif bone is None:
+                    raise FormatError(path, f"{tokens[0]!r} outside a begin/end bone block", lineno)
+                elif key == "id":
+                    pass
+                elif key == "name":
+                    bone.name = tokens[1]
+                elif key == "direction":
+                    bone.direction = np.array([float(t) for t in tokens[1:4]])
+                    if bone.direction.size != 3:
+                        raise ValueError
+                elif key == "length":
+                    bone.length = float(tokens[1])
+                elif key == "axis":
+                    bone.axis = np.array([float(t) for t in tokens[1:4]])
+                    bone.axis_order = tokens[4].upper() if len(tokens) > 4 else "XYZ"
+                elif key == "dof":
+                    bone.dof = [t.lower() for t in tokens[1:]]
+                    bad = [d for d in bone.dof if d not in _DOF_NAMES]
+                    if bad:
+                        raise FormatError(path, f"unknown dof {bad[0]!r} (expected rx ry rz tx ty tz l)", lineno)
+                    in_limits = False
+                elif key == "limits" or (in_limits and line.startswith("(")):
+                    nums = re.findall(r"[-+]?(?:inf|[0-9.]+(?:e[-+]?\d+)?)", line.lower())
+                    bone.limits.append((float(nums[0]), float(nums[1])))
+                    in_limits = True
+                elif key in ("bodymass", "cofmass"):
+                    pass
+                else:
+                    raise FormatError(path, f"unexpected {tokens[0]!r} in bone {bone.name or ''}", lineno)
+            elif section == ":hierarchy":
+                key = tokens[0].lower()
+                if key in ("begin", "end"):
+                    continue
+                hierarchy.append((lineno, tokens[0], tokens[1:]))
+        except (ValueError, IndexError):
+            raise FormatError(path, f"cannot read {line[:60]!r}", lineno) from None
+    if bone is not None:
+        raise FormatError(path, "file ends inside a bone block (truncated?)", bone.lineno)
+    if not hierarchy:
+        raise FormatError(path, "no :hierarchy section (truncated?)")
+    return _build_skeleton(path, bones, hierarchy, length_unit, angle_scale, root_order, root_axis,
+                           root_position, root_orientation)
+
+
+def _build_skeleton(path, bones, hierarchy, length_unit, angle_scale, root_order, root_axis,
+                    root_position, root_orientation):
+    length_scale = INCH / length_unit  # metres per file unit
+    children = {}
+    for lineno, parent, kids in hierarchy:
+        if parent != "root" and parent not in bones:
+            raise FormatError(path, f"hierarchy names unknown bone {parent!r}", lineno)
+        for k in kids:
+            if k not in bones:
+                raise FormatError(path, f"hierarchy names unknown bone {k!r}", lineno)
+        children.setdefault(parent, []).extend(kids)
+    names, parents, offsets, channels, dofs, limits = ["root"], [-1], [np.zeros(3)], [], [], []
+    root_chans = []
+    for d in root_order:
+        axis = d[1].upper()
+        root_chans.append(f"{axis}position" if d[0] == "T" else f"{axis}rotation")
+    channels.append(root_chans)
+    dofs.append([d.lower() for d in root_order])
+    limits.append([])
+    c_rot = {0: Rotation.from_euler(root_axis.lower(), root_orientation * angle_scale)}
+    end_sites = []
+    queue = [("root", 0)]
+    while queue:
+        parent_name, parent_idx = queue.pop(0)
+        for kid in children.get(parent_name, []):
+            if kid in names:
+                raise FormatError(path, f"bone {kid!r} appears twice in the hierarchy")
+            b = bones[kid]
+            names.append(kid)
+            parents.append(parent_idx)
+            if parent_name == "root":
+                offsets.append(root_position * 0.0)
+            else:
+                pb = bones[parent_name]
+                offsets.append(pb.direction * pb.length * length_scale)
+            channels.append(["Zrotation", "Xrotation", "Yrotation"] if b.dof else [])
+            dofs.append(list(b.dof))
+            limits.append(list(b.limits))
+            c_rot[len(names) - 1] = Rotation.from_euler(b.axis_order.lower(), b.axis * angle_scale)
+            if not children.get(kid):
+                end_sites.append((len(names) - 1, b.direction * b.length * length_scale))
+            queue.append((kid, len(names) - 1))
+    # Depth-first order keeps parents before children and groups limbs, as BVH files do.
+    order = _depth_first(parents)
+    remap = {old: new for new, old in enumerate(order)}
+    skeleton = Skeleton(
+        names=[names[i] for i in order],
+        parents=np.array([remap[parents[i]] if parents[i] >= 0 else -1 for i in order]),
+        offsets=np.array([offsets[i] for i in order]),
+        channels=[channels[i] for i in order],
+        end_sites=[(remap[j], o) for j, o in end_sites],
+        meters_per_unit=1.0,
+        dof=[dofs[i] for i in order],
+        limits=[limits[i] for i in order],
+        source=str(path),
+    )
+    c_rot = {remap[k]: v for k, v in c_rot.items()}
+    root_bone = AsfBone(0)
+    root_bone.name, root_bone.dof = "root", [d.lower() for d in root_order]
+    all_bones = dict(bones)
+    all_bones["root"] = root_bone
+    return Asf(path, skeleton, all_bones, root_order, angle_scale, length_scale, c_rot)
+
+
+def _depth_first(parents):
+    kids = {}
+    for i, p in enumerate(parents):
+        kids.setdefault(p, []).append(i)
+    order, stack = [], [0]
+    while stack:
+        j = stack.pop()
+        order.append(j)
+        stack.extend(reversed(kids.get(j, [])))
+    return order
+
+
+def find_asf(amc_path) -> Path:
+    """``X_NN.amc`` -> ``X.asf`` beside it (or the only .asf there)."""
+    amc_path = Path(amc_path)
+    stem = amc_path.stem
+    candidates = []
+    if "_" in stem:
+        candidates.append(amc_path.with_name(stem.rsplit("_", 1)[0] + ".asf"))
+    candidates.append(amc_path.with_suffix(".asf"))
+    for c in candidates:
+        for variant in (c, c.with_suffix(".ASF")):
+            if variant.exists():
+                return variant
+    asfs = sorted(amc_path.parent.glob("*.asf")) + sorted(amc_path.parent.glob("*.ASF"))
+    if len(asfs) == 1:
+        return asfs[0]
+    tried = ", ".join(str(c) for c in candidates)
+    raise FormatError(amc_path, f"no skeleton file found (looked for {tried}); give one with --asf SKELETON.asf")
+
+
+def read_amc(path, asf=None, fps=None) -> Motion:
+    """Read an AMC motion with its ASF skeleton (found beside it unless given)."""
+    asf_path = Path(asf) if asf is not None else find_asf(path)
+    skel_info = read_asf(asf_path)
+    text = read_text(path)
+    frames_dof = _parse_amc(path, text, skel_info)
+    motion = amc_to_motion(skel_info, frames_dof, CMU_FPS if fps is None else fps)
+    return motion
+
+
+def _parse_amc(path, text, info):
+    """Return {bone name: (F, n_dof) float array} in file units."""
+    raw_lines = text.splitlines()
+    degrees = True
+    start = 0
+    for i, ln in enumerate(raw_lines):
+        s = ln.strip()
+        if not s or s.startswith("#"):
+            continue
+        if s.startswith(":"):
+            if s.upper().startswith(":RADIANS"):
+                degrees = False
+            continue
+        start = i
+        break
+    else:
+        raise FormatError(path, "the file has zero frames; there is nothing to retime")
+    body = [(i + 1, ln.strip()) for i, ln in enumerate(raw_lines[start:], start) if ln.strip()]
+    frame_starts = [k for k, (_, ln) in enumerate(body) if ln.isdigit()]
+    if not frame_starts or frame_starts[0] != 0:
+        lineno = body[0][0] if body else len(raw_lines)
+        raise FormatError(path, "expected a frame number to start the motion data", lineno)
+    n_frames = len(frame_starts)
+    bounds = frame_starts + [len(body)]
+    dof_count = {name: len(b.dof) for name, b in info.bones.items()}
+    expected = [name for name in info.skeleton.names if dof_count.get(name, 0) > 0]
+    per_frame = bounds[1] - bounds[0] - 1
+    # Fast path: every frame lists the same bones in the same order (as CMU writes them).
+    uniform = all(b - a - 1 == per_frame for a, b in zip(bounds[:-1], bounds[1:]))
+    if uniform and per_frame > 0:
+        block = [ln for k, (_, ln) in enumerate(body)]
+        rows = np.array(block, dtype=object).reshape(n_frames, per_frame + 1)[:, 1:]
+        split = [r.split(None, 1) for r in rows[0]]
+        names0 = [s[0] for s in split]
+        if all(all(r.startswith(n + " ") or r == n for r, n in zip(rows[f], names0)) for f in range(n_frames)) \
+                and set(names0) == set(expected) and len(set(names0)) == len(names0):
+            counts = [dof_count[n] for n in names0]
+            try:
+                vals = np.array(" ".join(r.split(None, 1)[1] if " " in r else "" for r in rows.ravel()).split(),
+                                dtype=float)
+            except ValueError:
+                vals = None
+            if vals is not None and vals.size == n_frames * sum(counts) and np.all(np.isfinite(vals)):
+                vals = vals.reshape(n_frames, sum(counts))
+                out, col = {}, 0
+                for n, c in zip(names0, counts):
+                    out[n] = vals[:, col:col + c]
+                    col += c
+                return _to_radians(out, degrees, info)
+    return _to_radians(_parse_amc_slow(path, body, bounds, dof_count, expected, info), degrees, info)
+
+
+def _parse_amc_slow(path, body, bounds, dof_count, expected, info):
+    n_frames = len(bounds) - 1
+    out = {n: np.zeros((n_frames, dof_count[n])) for n in expected}
+    for f in range(n_frames):
+        seen = set()
+        frame_line = body[bounds[f]][0]
+        number = int(body[bounds[f]][1])
+        for lineno, ln in body[bounds[f] + 1:bounds[f + 1]]:
+            tokens = ln.split()
+            name = tokens[0]
+            if name not in dof_count:
+                raise FormatError(path, f"frame {number}: unknown bone {name!r} (not in {Path(info.path).name})", lineno)
+            if len(tokens) - 1 != dof_count[name]:
+                raise FormatError(
+                    path, f"frame {number}: bone {name!r} has {len(tokens) - 1} values, the skeleton declares "
+                    f"{dof_count[name]} dof ({' '.join(info.bones[name].dof) or 'none'})", lineno)
+            try:
+                vals = np.array([float(t) for t in tokens[1:]])
+            except ValueError:
+                raise FormatError(path, f"frame {number}: bone {name!r} holds a value that is not a number", lineno) from None
+            if not np.all(np.isfinite(vals)):
+                raise FormatError(path, f"frame {number}: bone {name!r} holds a value that is not finite (NaN or inf)", lineno)
+            if dof_count[name]:
+                out[name][f] = vals
+            seen.add(name)
+        missing = [n for n in expected if n not in seen]
+        if missing:
+            last = body[bounds[f + 1] - 1][0]
+            hint = " (truncated?)" if f == n_frames - 1 else ""
+            raise FormatError(path, f"frame {number} (line {frame_line}) is missing bone(s) {', '.join(missing)}{hint}", last)
+    return out
+
+
+def _to_radians(values, degrees, info):
+    out = {}
+    for name, v in values.items():
+        dof = info.bones[name].dof
+        v = v.copy()
+        for k, d in enumerate(dof):
+            if d.startswith("r"):
+                v[:, k] *= (np.pi / 180.0) if degrees else 1.0
+            elif d.startswith("t") or d == "l":
+                v[:, k] *= info.length_scale
+        out[name] = v
+    return out
+
+
+def amc_to_motion(info, values, fps) -> Motion:
+    sk = info.skeleton
+    n_frames = next(iter(values.values())).shape[0]
+    rotations = np.zeros((n_frames, sk.n_joints, 4))
+    rotations[..., 3] = 1.0
+    translations = np.broadcast_to(sk.offsets, (n_frames, sk.n_joints, 3)).copy()
+    for j, name in enumerate(sk.names):
+        if name not in values:
+            continue
+        dof = info.bones[name].dof
+        v = values[name]
+        rot_axes = "".join(d[1] for d in dof if d.startswith("r"))
+        rot_cols = [k for k, d in enumerate(dof) if d.startswith("r")]
+        if j == 0 or name == "root":
+            for k, d in enumerate(dof):
+                if d.startswith("t"):
+                    translations[:, j, "xyz".index(d[1])] = v[:, k]
+        if rot_axes:
+            # dof rotations apply in the listed order about fixed axes of the bone frame.
+            m = Rotation.from_euler(rot_axes, v[:, rot_cols])
+            c = info.c_rot[j]
+            local = c * m * c.inv()
+            rotations[:, j] = local.as_quat()
+    return Motion(sk, rotations, translations, fps)

@@ -1,0 +1,313 @@
+"""BVH (Biovision hierarchy) reading and writing.
+
+Accepts what the format allows and exporters write: CR, LF or CRLF line ends, tabs or spaces, any
+rotation order per joint (1 to 3 rotation channels), position channels on any joint, End Sites, any
+frame time. A joint's position channels replace its OFFSET (as most tools read them); a root
+OFFSET is therefore ignored when the root has position channels.
+"""
+from __future__ import annotations
+
+import io
+import re
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..errors import FormatError
+from ..io_util import atomic_write
+from .fk import rest_height
+from .model import POSITION_CHANNELS, ROTATION_CHANNELS, Motion, Skeleton, guess_meters_per_unit
+from .quat import continuous
+
+_CHANNEL_NAMES = {c.lower(): c for c in ROTATION_CHANNELS + POSITION_CHANNELS}
+
+
+def read_text(path) -> str:
+    try:
+        raw = open(path, "rb").read()
+    except FileNotFoundError:
+        raise FormatError(path, "file not found") from None
+    except IsADirectoryError:
+        raise FormatError(path, "is a folder, not a file") from None
+    except OSError as e:
+        raise FormatError(path, f"cannot read: {e.strerror}") from None
+    if b"\0" in raw[:4096]:
+        raise FormatError(path, "binary data where text was expected; is this really a text motion file?")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+def _lines(text):
+    """(line number, stripped line) for non-empty lines; splitlines handles CR, LF and CRLF."""
+    return [(i + 1, ln.strip()) for i, ln in enumerate(text.splitlines()) if ln.strip()]
+
+
+class _Hierarchy:
+    def __init__(self):
+        self.names, self.parents, self.offsets, self.channels, self.end_sites = [], [], [], [], []
+
+
+def _parse_hierarchy(path, lines):
+    h = _Hierarchy()
+    stack = []  # joint index per open brace; -2 for an End Site block
+    pending = None  # ('joint', idx) or ('end', parent) waiting for its '{'
+    i = 0
+    if not lines or lines[0][1].split()[0].upper() != "HIERARCHY":
+        raise FormatError(path, "does not start with HIERARCHY; not a BVH file?", lines[0][0] if lines else None)
+    i = 1
+    while i < len(lines):
+        lineno, line = lines[i]
+        tokens = line.split()
+        key = tokens[0].upper()
+        if key == "MOTION":
+            if stack or pending:
+                raise FormatError(path, "MOTION before the hierarchy's braces are closed", lineno)
+            return h, i
+        if key in ("ROOT", "JOINT"):
+            if key == "ROOT" and (stack or h.names):
+                raise FormatError(path, "more than one ROOT; retime reads one skeleton per file", lineno)
+            if key == "JOINT" and not stack:
+                raise FormatError(path, "JOINT outside any ROOT", lineno)
+            name = line[len(tokens[0]):].strip()
+            if not name:
+                raise FormatError(path, f"{tokens[0]} without a name", lineno)
+            if name in h.names:
+                raise FormatError(path, f"joint name {name!r} used twice", lineno)
+            h.names.append(name)
+            h.parents.append(stack[-1] if stack else -1)
+            h.offsets.append(None)
+            h.channels.append([])
+            pending = ("joint", len(h.names) - 1)
+        elif key == "END":
+            if not stack or stack[-1] < 0:
+                raise FormatError(path, "End Site outside a joint", lineno)
+            pending = ("end", stack[-1])
+        elif key == "{":
+            if pending is None:
+                raise FormatError(path, "'{' without a ROOT, JOINT or End Site before it", lineno)
+            if pending[0] == "joint":
+                stack.append(pending[1])
+            else:
+                h.end_sites.append([pending[1], None])
+                stack.append(-2)
+            pending = None
+            if len(tokens) > 1:  # "{ OFFSET ..." on one line: handle the rest as its own line
+                lines[i] = (lineno, line[line.index("{") + 1:].strip())
+                continue
+        elif key == "}":
+            if not stack:
+                raise FormatError(path, "'}' without a matching '{'", lineno)
+            top = stack.pop()
+            if top >= 0 and h.offsets[top] is None:
+                raise FormatError(path, f"joint {h.names[top]!r} has no OFFSET", lineno)
+            if top == -2 and h.end_sites[-1][1] is None:
+                raise FormatError(path, "End Site has no OFFSET", lineno)
+        elif key == "OFFSET":
+            if not stack:
+                raise FormatError(path, "OFFSET outside a joint", lineno)
+            vals = _floats(path, tokens[1:4], lineno, "OFFSET")
+            if len(tokens) < 4:
+                raise FormatError(path, f"OFFSET needs 3 numbers, found {len(tokens) - 1}", lineno)
+            if stack[-1] == -2:
+                h.end_sites[-1][1] = vals
+            else:
+                h.offsets[stack[-1]] = vals
+        elif key == "CHANNELS":
+            if not stack or stack[-1] < 0:
+                raise FormatError(path, "CHANNELS outside a joint", lineno)
+            try:
+                count = int(tokens[1])
+            except (IndexError, ValueError):
+                raise FormatError(path, "CHANNELS needs a count, then the channel names", lineno) from None
+            names = tokens[2:]
+            if len(names) != count:
+                raise FormatError(path, f"CHANNELS says {count} but names {len(names)}", lineno)
+            chans = []
+            for c in names:
+                if c.lower() not in _CHANNEL_NAMES:
+                    raise FormatError(path, f"unknown channel {c!r} (expected X/Y/Z position/rotation)", lineno)
+                chans.append(_CHANNEL_NAMES[c.lower()])
+            h.channels[stack[-1]] = chans
+        else:
+            raise FormatError(path, f"unexpected {tokens[0]!r} in HIERARCHY", lineno)
+        i += 1
+    raise FormatError(path, "file ends before MOTION (truncated?)", lines[-1][0])
+
+
+def _floats(path, tokens, lineno, what):
+    try:
+        vals = np.array([float(t) for t in tokens])
+    except ValueError:
+        raise FormatError(path, f"{what} holds a value that is not a number", lineno) from None
+    if not np.all(np.isfinite(vals)):
+        raise FormatError(path, f"{what} holds a value that is not finite (NaN or inf)", lineno)
+    return vals
+
+
+_HEADER = re.compile(r"^(frames\s*:|frame\s+time\s*:)\s*(\S*)", re.IGNORECASE)
+
+
+def read_bvh(path, fps=None) -> Motion:
+    """Read a BVH file. ``fps`` overrides the file's Frame Time."""
+    text = read_text(path)
+    lines = _lines(text)
+    h, i = _parse_hierarchy(path, lines)
+    if not h.names:
+        raise FormatError(path, "no ROOT joint in HIERARCHY", lines[i][0])
+    header = {}
+    i += 1
+    while i < len(lines) and len(header) < 2:
+        lineno, line = lines[i]
+        m = _HEADER.match(line)
+        if not m:
+            raise FormatError(path, f"expected 'Frames:' and 'Frame Time:' after MOTION, found {line[:40]!r}", lineno)
+        header["frames" if m.group(1).lower().startswith("frames") else "time"] = (m.group(2), lineno)
+        i += 1
+    if "frames" not in header or "time" not in header:
+        raise FormatError(path, "file ends in the MOTION header (truncated?)", lines[-1][0])
+    try:
+        n_frames = int(header["frames"][0])
+        frame_time = float(header["time"][0])
+    except ValueError:
+        raise FormatError(path, "Frames: needs a whole number and Frame Time: a number", header["frames"][1]) from None
+    if n_frames <= 0:
+        raise FormatError(path, "the file has zero frames; there is nothing to retime", header["frames"][1])
+    if fps is None:
+        if not (np.isfinite(frame_time) and frame_time > 0):
+            raise FormatError(path, "Frame Time must be a positive number of seconds; or give --fps", header["time"][1])
+        fps = 1.0 / frame_time
+    n_channels = sum(len(c) for c in h.channels)
+    data_lines = lines[i:]
+    if len(data_lines) < n_frames:
+        last = data_lines[-1][0] if data_lines else lines[-1][0]
+        raise FormatError(path, f"file ends after {len(data_lines)} of {n_frames} frames (truncated?)", last)
+    data_lines = data_lines[:n_frames]
+    values = _parse_frames(path, data_lines, n_channels)
+    offsets = np.array(h.offsets)
+    end_sites = [(int(j), np.asarray(o)) for j, o in h.end_sites]
+    skeleton = Skeleton(names=h.names, parents=np.array(h.parents), offsets=offsets, channels=h.channels,
+                        end_sites=end_sites, source=str(path))
+    skeleton.meters_per_unit = guess_meters_per_unit(rest_height(skeleton))
+    rotations, translations = channels_to_pose(skeleton, values)
+    return Motion(skeleton, rotations, translations, fps)
+
+
+def _parse_frames(path, data_lines, n_channels):
+    text = " ".join(ln for _, ln in data_lines)
+    try:
+        values = np.array(text.split(), dtype=float)
+    except ValueError:
+        values = None
+    if values is not None and values.size == len(data_lines) * n_channels and np.all(np.isfinite(values)):
+        return values.reshape(len(data_lines), n_channels)
+    for f, (lineno, line) in enumerate(data_lines):  # find and name the bad line
+        tokens = line.split()
+        if len(tokens) != n_channels:
+            raise FormatError(path, f"frame {f + 1} has {len(tokens)} values, the hierarchy declares {n_channels} channels", lineno)
+        _floats(path, tokens, lineno, f"frame {f + 1}")
+    raise FormatError(path, "cannot read the frame values", data_lines[0][0])
+
+
+def channels_to_pose(skeleton, values):
+    """Per-frame channel values (F, C) -> local rotations (F, J, 4) and translations (F, J, 3)."""
+    n_frames = values.shape[0]
+    n_joints = skeleton.n_joints
+    rotations = np.zeros((n_frames, n_joints, 4))
+    rotations[..., 3] = 1.0
+    translations = np.broadcast_to(skeleton.offsets, (n_frames, n_joints, 3)).copy()
+    col = 0
+    groups = {}
+    for j, chans in enumerate(skeleton.channels):
+        rot_cols, seq = [], ""
+        for c in chans:
+            if c in POSITION_CHANNELS:
+                translations[:, j, POSITION_CHANNELS.index(c)] = values[:, col]
+            else:
+                rot_cols.append(col)
+                seq += c[0]
+            col += 1
+        if seq:
+            groups.setdefault(seq, []).append((j, rot_cols))
+    for seq, members in groups.items():
+        joints = [j for j, _ in members]
+        cols = np.array([c for _, c in members])  # (G, k)
+        angles = values[:, cols]  # (F, G, k)
+        if len(seq) <= 3:
+            rot = Rotation.from_euler(seq.upper(), angles.reshape(-1, len(seq)), degrees=True)
+            rotations[:, joints] = rot.as_quat().reshape(n_frames, len(joints), 4)
+        else:  # more than three rotation channels: compose one axis at a time (intrinsic)
+            rot = Rotation.identity(n_frames * len(joints))
+            for k, axis in enumerate(seq):
+                rot = rot * Rotation.from_euler(axis.upper(), angles[..., k].reshape(-1), degrees=True)
+            rotations[:, joints] = rot.as_quat().reshape(n_frames, len(joints), 4)
+    return rotations, translations
+
+
+def _writable_channels(chans):
+    """Channels to write for a joint: its own, with the rotation completed to three axes."""
+    rot = [c for c in chans if c in ROTATION_CHANNELS]
+    axes = "".join(c[0] for c in rot)
+    if len(rot) == 3 and len(set(axes)) == 3:
+        return list(chans)
+    pos = [c for c in chans if c in POSITION_CHANNELS]
+    return pos + [a + "rotation" for a in "ZXY"]
+
+
+def pose_to_channels(skeleton, rotations, translations):
+    """Local rotations and translations -> channel values (F, C) and the channel names per joint."""
+    n_frames = rotations.shape[0]
+    columns, channels = [], []
+    for j, chans in enumerate(skeleton.channels):
+        chans = _writable_channels(chans)
+        channels.append(chans)
+        seq = "".join(c[0] for c in chans if c in ROTATION_CHANNELS)
+        q = continuous(rotations[:, j])
+        euler = Rotation.from_quat(q).as_euler(seq.upper(), degrees=True)
+        euler = np.rad2deg(np.unwrap(np.deg2rad(euler), axis=0))
+        k = 0
+        for c in chans:
+            if c in POSITION_CHANNELS:
+                columns.append(translations[:, j, POSITION_CHANNELS.index(c)])
+            else:
+                columns.append(euler[:, k])
+                k += 1
+    return np.stack(columns, axis=1) if columns else np.zeros((n_frames, 0)), channels
+
+
+def bvh_text(motion) -> str:
+    sk = motion.skeleton
+    values, channels = pose_to_channels(sk, motion.rotations, motion.translations)
+    out = io.StringIO()
+    out.write("HIERARCHY\n")
+    children = {j: sk.children(j) for j in range(sk.n_joints)}
+    sites = {}
+    for j, off in sk.end_sites:
+        sites.setdefault(j, []).append(off)
+
+    def fmt(v):
+        return " ".join(f"{x:.6f}" for x in v)
+
+    def write_joint(j, depth):
+        ind = "\t" * depth
+        out.write(f"{ind}{'ROOT' if sk.parents[j] < 0 else 'JOINT'} {sk.names[j]}\n{ind}{{\n")
+        out.write(f"{ind}\tOFFSET {fmt(sk.offsets[j])}\n")
+        out.write(f"{ind}\tCHANNELS {len(channels[j])} {' '.join(channels[j])}\n")
+        for c in children[j]:
+            write_joint(c, depth + 1)
+        for off in sites.get(j, []):
+            out.write(f"{ind}\tEnd Site\n{ind}\t{{\n{ind}\t\tOFFSET {fmt(off)}\n{ind}\t}}\n")
+        out.write(f"{ind}}}\n")
+
+    write_joint(0, 0)
+    out.write(f"MOTION\nFrames: {motion.n_frames}\nFrame Time: {1.0 / motion.fps:.10g}\n")
+    np.savetxt(out, values, fmt="%.6f", delimiter=" ")
+    return out.getvalue()
+
+
+def write_bvh(motion, path):
+    """Write a motion as BVH, atomically."""
+    text = bvh_text(motion)
+    with atomic_write(path, "w", newline="\n") as f:
+        f.write(text)

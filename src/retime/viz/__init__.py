@@ -1,0 +1,1 @@
+"""Seeing timing: plots of timing curves and physics regions, skeleton videos, video retiming."""
