@@ -21,6 +21,7 @@ from scipy.spatial.transform import Rotation
 from ..errors import FormatError
 from .bvh import read_text
 from .model import Motion, Skeleton
+from .quat import euler_to_quat, qconj, qmul
 
 INCH = 0.0254
 CMU_FPS = 120.0
@@ -50,6 +51,7 @@ class Asf:
         self.angle_scale = angle_scale  # multiply file angles by this to get radians
         self.length_scale = length_scale  # multiply file lengths by this to get metres
         self.c_rot = c_rot  # joint index -> Rotation (bone axis)
+        self.c_quat = {j: r.as_quat() for j, r in c_rot.items()}
 
 
 def _section_lines(text):
@@ -261,56 +263,88 @@ def read_amc(path, asf=None, fps=None) -> Motion:
     return motion
 
 
-def _parse_amc(path, text, info):
-    """Return {bone name: (F, n_dof) float array} in file units."""
-    raw_lines = text.splitlines()
+def _amc_header(path, text):
+    """(offset where the frame data starts, angles in degrees?) after the ':' and '#' header lines."""
     degrees = True
-    start = 0
-    for i, ln in enumerate(raw_lines):
-        s = ln.strip()
-        if not s or s.startswith("#"):
-            continue
-        if s.startswith(":"):
-            if s.upper().startswith(":RADIANS"):
+    pos = 0
+    n = len(text)
+    while pos < n:
+        nl = text.find("\n", pos)
+        nl = n if nl < 0 else nl
+        line = text[pos:nl].strip()
+        if line and not line.startswith("#"):
+            if not line.startswith(":"):
+                return pos, degrees
+            if line.upper().startswith(":RADIANS"):
                 degrees = False
-            continue
-        start = i
-        break
-    else:
-        raise FormatError(path, "the file has zero frames; there is nothing to retime")
-    body = [(i + 1, ln.strip()) for i, ln in enumerate(raw_lines[start:], start) if ln.strip()]
+        pos = nl + 1
+    raise FormatError(path, "the file has zero frames; there is nothing to retime")
+
+
+def _parse_amc(path, text, info):
+    """Return {bone name: (F, n_dof) float array} in radians and metres."""
+    if "\r" in text and text.count("\r") != text.count("\r\n"):  # CR-only (old Mac) or mixed line ends
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    start, degrees = _amc_header(path, text)
+    names = set(info.skeleton.names)
+    dof_count = {name: len(b.dof) for name, b in info.bones.items() if name in names}
+    expected = [name for name in info.skeleton.names if dof_count.get(name, 0) > 0]
+    body_text = text[start:]
+    fast = _parse_amc_fast(body_text, dof_count, expected)
+    if fast is not None:
+        return _to_radians(fast, degrees, info)
+    first_line = text.count("\n", 0, start) + 1
+    body = [(i + first_line, ln.strip()) for i, ln in enumerate(body_text.splitlines())
+            if ln.strip() and not ln.lstrip().startswith("#")]
     frame_starts = [k for k, (_, ln) in enumerate(body) if ln.isdigit()]
     if not frame_starts or frame_starts[0] != 0:
-        lineno = body[0][0] if body else len(raw_lines)
-        raise FormatError(path, "expected a frame number to start the motion data", lineno)
-    n_frames = len(frame_starts)
+        raise FormatError(path, "expected a frame number to start the motion data", body[0][0] if body else first_line)
     bounds = frame_starts + [len(body)]
-    dof_count = {name: len(b.dof) for name, b in info.bones.items()}
-    expected = [name for name in info.skeleton.names if dof_count.get(name, 0) > 0]
-    per_frame = bounds[1] - bounds[0] - 1
-    # Fast path: every frame lists the same bones in the same order (as CMU writes them).
-    uniform = all(b - a - 1 == per_frame for a, b in zip(bounds[:-1], bounds[1:]))
-    if uniform and per_frame > 0:
-        block = [ln for k, (_, ln) in enumerate(body)]
-        rows = np.array(block, dtype=object).reshape(n_frames, per_frame + 1)[:, 1:]
-        split = [r.split(None, 1) for r in rows[0]]
-        names0 = [s[0] for s in split]
-        if all(all(r.startswith(n + " ") or r == n for r, n in zip(rows[f], names0)) for f in range(n_frames)) \
-                and set(names0) == set(expected) and len(set(names0)) == len(names0):
-            counts = [dof_count[n] for n in names0]
-            try:
-                vals = np.array(" ".join(r.split(None, 1)[1] if " " in r else "" for r in rows.ravel()).split(),
-                                dtype=float)
-            except ValueError:
-                vals = None
-            if vals is not None and vals.size == n_frames * sum(counts) and np.all(np.isfinite(vals)):
-                vals = vals.reshape(n_frames, sum(counts))
-                out, col = {}, 0
-                for n, c in zip(names0, counts):
-                    out[n] = vals[:, col:col + c]
-                    col += c
-                return _to_radians(out, degrees, info)
     return _to_radians(_parse_amc_slow(path, body, bounds, dof_count, expected, info), degrees, info)
+
+
+def _parse_amc_fast(body_text, dof_count, expected):
+    """Every frame: its number, then the same bones in the same order (as CMU writes them).
+
+    Splits the whole text into tokens once and reads the values column-wise; returns None when the
+    file does not have that regular layout or holds a bad value (the slow path then names the line)."""
+    tokens = body_text.split()
+    if not tokens or not tokens[0].isdigit():
+        return None
+    layout = []  # (bone name, value count) of the first frame
+    k = 1
+    while k < len(tokens) and not (tokens[k].isdigit() and tokens[k] not in dof_count):
+        name = tokens[k]
+        if name not in dof_count:
+            return None
+        layout.append((name, dof_count[name]))
+        k += 1 + dof_count[name]
+    width = k
+    names0 = [n for n, c in layout if c > 0]
+    if sorted(names0) != sorted(expected) or len(tokens) % width:
+        return None
+    table = np.array(tokens, dtype=object).reshape(-1, width)
+    name_cols, value_cols, col = [], [], 1
+    for name, c in layout:
+        name_cols.append(col)
+        value_cols.extend(range(col + 1, col + 1 + c))
+        col += 1 + c
+    if not all(map(str.isdigit, table[:, 0])):
+        return None
+    if not np.all(table[:, name_cols] == np.array([n for n, _ in layout], dtype=object)):
+        return None
+    try:
+        vals = table[:, value_cols].astype(float)
+    except ValueError:
+        return None
+    if not np.all(np.isfinite(vals)):
+        return None
+    out, col = {}, 0
+    for name, c in layout:
+        if c:
+            out[name] = vals[:, col:col + c]
+        col += c
+    return out
 
 
 def _parse_amc_slow(path, body, bounds, dof_count, expected, info):
@@ -329,6 +363,8 @@ def _parse_amc_slow(path, body, bounds, dof_count, expected, info):
                 raise FormatError(
                     path, f"frame {number}: bone {name!r} has {len(tokens) - 1} values, the skeleton declares "
                     f"{dof_count[name]} dof ({' '.join(info.bones[name].dof) or 'none'})", lineno)
+            if name in seen:
+                raise FormatError(path, f"frame {number}: bone {name!r} appears twice", lineno)
             try:
                 vals = np.array([float(t) for t in tokens[1:]])
             except ValueError:
@@ -373,14 +409,13 @@ def amc_to_motion(info, values, fps) -> Motion:
         v = values[name]
         rot_axes = "".join(d[1] for d in dof if d.startswith("r"))
         rot_cols = [k for k, d in enumerate(dof) if d.startswith("r")]
-        if j == 0 or name == "root":
+        if j == 0:
             for k, d in enumerate(dof):
                 if d.startswith("t"):
                     translations[:, j, "xyz".index(d[1])] = v[:, k]
         if rot_axes:
-            # dof rotations apply in the listed order about fixed axes of the bone frame.
-            m = Rotation.from_euler(rot_axes, v[:, rot_cols])
-            c = info.c_rot[j]
-            local = c * m * c.inv()
-            rotations[:, j] = local.as_quat()
+            # dof rotations apply in the listed order about fixed axes of the bone frame (extrinsic).
+            m = euler_to_quat(rot_axes, v[:, rot_cols])
+            c = info.c_quat[j]
+            rotations[:, j] = qmul(qmul(c, m), qconj(c))
     return Motion(sk, rotations, translations, fps)

@@ -29,6 +29,33 @@ def qrot(q, v):
     return v + w * t + np.cross(u, t)
 
 
+def axis_quat(axis: int, angle):
+    """Rotations by ``angle`` (radians, any shape) about coordinate axis 0, 1 or 2 (x, y, z)."""
+    angle = np.asarray(angle, dtype=float)
+    q = np.zeros(angle.shape + (4,))
+    q[..., axis] = np.sin(0.5 * angle)
+    q[..., 3] = np.cos(0.5 * angle)
+    return q
+
+
+def euler_to_quat(seq: str, angles, degrees=False):
+    """Euler angles (..., len(seq)) -> quaternions (..., 4), with SciPy's ``from_euler`` meaning:
+    upper-case ``seq`` = intrinsic axes (rotating frame), lower-case = extrinsic (fixed axes), the first
+    axis in ``seq`` applied first. Vectorized with plain NumPy (SciPy's Rotation is slow per call)."""
+    angles = np.asarray(angles, dtype=float)
+    if degrees:
+        angles = np.deg2rad(angles)
+    intrinsic = seq.isupper()
+    q = None
+    for k, ax in enumerate(seq.lower()):
+        qk = axis_quat("xyz".index(ax), angles[..., k])
+        q = qk if q is None else (qmul(q, qk) if intrinsic else qmul(qk, q))
+    if q is None:
+        q = np.zeros(angles.shape[:-1] + (4,))
+        q[..., 3] = 1.0
+    return q
+
+
 def qnormalize(q):
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
@@ -38,17 +65,20 @@ def slerp(q0, q1, w):
 
     Takes the shorter arc (q and -q are the same rotation), as SciPy's Slerp does.
     """
-    w = np.asarray(w, dtype=float)[..., None]
-    dot = np.sum(q0 * q1, axis=-1, keepdims=True)
-    q1 = np.where(dot < 0.0, -q1, q1)
-    dot = np.abs(dot)
-    theta = np.arccos(np.clip(dot, -1.0, 1.0))
+    w = np.asarray(w, dtype=float)
+    dot = np.einsum("...i,...i->...", q0, q1)
+    sign = np.where(dot < 0.0, -1.0, 1.0)
+    dot = np.minimum(np.abs(dot), 1.0)
+    theta = np.arccos(dot)
     sin_theta = np.sin(theta)
-    small = sin_theta < 1e-8
-    safe = np.where(small, 1.0, sin_theta)
-    k0 = np.where(small, 1.0 - w, np.sin((1.0 - w) * theta) / safe)
-    k1 = np.where(small, w, np.sin(w * theta) / safe)
-    return qnormalize(k0 * q0 + k1 * q1)
+    small = sin_theta < 1e-8  # (nearly) the same rotation: linear interpolation is exact enough
+    inv = np.divide(1.0, sin_theta, out=np.zeros_like(sin_theta), where=~small)
+    k0 = np.where(small, 1.0 - w, np.sin((1.0 - w) * theta) * inv)
+    k1 = np.where(small, w, np.sin(w * theta) * inv) * sign
+    out = q0 * k0[..., None]
+    out += q1 * k1[..., None]
+    out /= np.sqrt(np.einsum("...i,...i->...", out, out))[..., None]
+    return out
 
 
 def continuous(q, axis=0):
