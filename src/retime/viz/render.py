@@ -42,7 +42,7 @@ SKY_BOTTOM = (250, 251, 252)
 FLOOR_NEAR = (226, 230, 236)
 FLOOR_FAR = (244, 246, 249)
 GRID_COLOR = (180, 188, 200)
-SHADOW_COLOR = (196, 202, 211)
+SHADOW_COLOR = (204, 209, 217)
 TEXT_COLOR = (40, 46, 56)
 MUTED_TEXT = (110, 118, 130)
 
@@ -236,8 +236,10 @@ class Panel:
     sampled: dict
     background: Image.Image
     timeline: Image.Image
+    grid_bands: list
+    grid_colors: list
     side: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    head: int | None = None
+    head: tuple[int, int | None] | None = None
 
 
 class Renderer:
@@ -300,7 +302,7 @@ class Renderer:
 
         fov = math.radians(38.0)
         focal = (view_h / 2) / math.tan(fov / 2)
-        dist = camera_distance if camera_distance else 2.05 * body_h / (2 * math.tan(fov / 2)) * 1.05
+        dist = camera_distance if camera_distance else 1.65 * body_h / (2 * math.tan(fov / 2))
         # steady camera: fixed orientation, smoothed horizontal root position
         d = self._travel
         side = np.array([-d[2], 0.0, d[0]])
@@ -314,7 +316,7 @@ class Renderer:
         target[:, 0] = smooth[:, 0]
         target[:, 2] = smooth[:, 2]
         target[:, 1] = ground + 0.5 * body_h
-        elevation = 0.55 * body_h
+        elevation = 0.4 * body_h
         centers = target + dist * back[None, :] + np.array([0.0, elevation, 0.0])
         fwd = -(dist * back + np.array([0.0, elevation, 0.0]))
         fwd /= np.linalg.norm(fwd)
@@ -332,9 +334,19 @@ class Renderer:
         shadow_xy = cam.project(cam.to_camera(shadow, np.arange(len(self.times))))
 
         color = track.color or method_color(track.label, index)
+        # depth bands for the grid: full contrast up to just behind the subject, then fading out
+        edges = np.array([0.3, dist * 1.25, dist * 1.55, dist * 1.85, dist * 2.2, dist * 2.6])
+        grid_bands = list(zip(edges[:-1], edges[1:]))
+        fade = [1.0, 0.75, 0.5, 0.3, 0.14]
+        grid_colors = [tuple(int(round(f * g + (1 - f) * b)) for g, b in zip(GRID_COLOR, FLOOR_FAR)) for f in fade]
         background = self._background(cam, ground, W, view_h, H)
         timeline = self._timeline(track, color, W) if self.show_timeline else None
-        head = _find_joint(track.names, r"^head$") or _find_joint(track.names, r"head")
+        head = _find_joint(track.names, r"^head$")
+        if head is None:
+            head = _find_joint(track.names, r"head")
+        if head is not None:
+            kids = [int(c) for c in np.nonzero(track.parents == head)[0]]
+            head = (head, kids[0] if len(kids) == 1 else None)
         return Panel(
             track=track,
             color=color,
@@ -347,6 +359,8 @@ class Renderer:
             sampled=sampled,
             background=background,
             timeline=timeline,
+            grid_bands=grid_bands,
+            grid_colors=grid_colors,
             side=_sides(track.names, track.parents),
             head=head,
         )
@@ -403,49 +417,55 @@ class Renderer:
         return img
 
     # ------------------------------------------------------------------ drawing
-    def _grid_segments(self, panel: Panel, k: int) -> np.ndarray:
-        """Projected ground-grid segments (M, 2, 2) for frame k, clipped at the near plane."""
+    def _grid_segments(self, panel: Panel, k: int) -> list[tuple[tuple[int, int, int], np.ndarray]]:
+        """Projected ground-grid segments for frame k, as (colour, (M, 2, 2) pixel segments) per depth band.
+
+        The grid is fixed in the world (0.5 m squares) and covers a square around the point the
+        camera looks at; segments are clipped to depth bands whose colour fades into the floor.
+        """
         cam = panel.camera
-        step, radius = 0.5, 7.0
-        c = cam.centers[k] - cam.forward * 0  # around the look-at region
-        tx = c[0] - 0.0
-        tz = c[2]
-        # grid centred on the point the camera looks at on the ground
-        look = cam.centers[k] + cam.forward * ((cam.centers[k][1] - panel.ground) / max(-cam.forward[1], 0.05))
+        step, radius = 0.5, 5.0
+        c = cam.centers[k]
+        look = c + cam.forward * ((c[1] - panel.ground) / max(-cam.forward[1], 0.05))
         tx, tz = look[0], look[2]
         xs = np.arange(math.floor((tx - radius) / step), math.ceil((tx + radius) / step) + 1) * step
         zs = np.arange(math.floor((tz - radius) / step), math.ceil((tz + radius) / step) + 1) * step
         g = panel.ground
-        a = np.concatenate(
-            [np.stack([xs, np.full_like(xs, g), np.full_like(xs, zs[0])], 1),
-             np.stack([np.full_like(zs, xs[0]), np.full_like(zs, g), zs], 1)]
-        )
-        b = np.concatenate(
-            [np.stack([xs, np.full_like(xs, g), np.full_like(xs, zs[-1])], 1),
-             np.stack([np.full_like(zs, xs[-1]), np.full_like(zs, g), zs], 1)]
-        )
-        ca = cam.to_camera(a, k)
-        cb = cam.to_camera(b, k)
-        near = 0.3
-        za, zb = ca[:, 2], cb[:, 2]
-        keep = (za > near) | (zb > near)
-        ca, cb, za, zb = ca[keep], cb[keep], za[keep], zb[keep]
-        # clip the part behind the near plane
-        ta = np.where(za < near, (near - za) / (zb - za + 1e-12), 0.0)[:, None]
-        tb = np.where(zb < near, (near - zb) / (za - zb + 1e-12), 0.0)[:, None]
-        ca2 = ca + (cb - ca) * ta
-        cb2 = cb + (ca - cb) * tb
-        pa = cam.project(ca2)
-        pb = cam.project(cb2)
-        return np.stack([pa, pb], axis=1)
+        ones_x, ones_z = np.ones_like(xs), np.ones_like(zs)
+        a = np.concatenate([np.stack([xs, g * ones_x, zs[0] * ones_x], 1), np.stack([xs[0] * ones_z, g * ones_z, zs], 1)])
+        b = np.concatenate([np.stack([xs, g * ones_x, zs[-1] * ones_x], 1), np.stack([xs[-1] * ones_z, g * ones_z, zs], 1)])
+        ca, cb = cam.to_camera(a, k), cam.to_camera(b, k)
+        out = []
+        for (zlo, zhi), color in zip(panel.grid_bands, panel.grid_colors):
+            za, zb = ca[:, 2], cb[:, 2]
+            lo, hi = np.minimum(za, zb), np.maximum(za, zb)
+            keep = (hi > zlo) & (lo < zhi)
+            if not np.any(keep):
+                continue
+            p, q = ca[keep], cb[keep]
+            dz = q[:, 2] - p[:, 2]
+            safe = np.where(np.abs(dz) < 1e-12, 1e-12, dz)
+            t_lo = (zlo - p[:, 2]) / safe
+            t_hi = (zhi - p[:, 2]) / safe
+            t0 = np.clip(np.where(dz >= 0, t_lo, t_hi), 0, 1)
+            t1 = np.clip(np.where(dz >= 0, t_hi, t_lo), 0, 1)
+            flat = np.abs(dz) < 1e-12
+            t0 = np.where(flat, 0.0, t0)
+            t1 = np.where(flat, 1.0, t1)
+            ok = t1 > t0
+            p0 = p[ok] + (q[ok] - p[ok]) * t0[ok, None]
+            p1 = p[ok] + (q[ok] - p[ok]) * t1[ok, None]
+            out.append((color, np.stack([cam.project(p0), cam.project(p1)], axis=1)))
+        return out
 
     def _draw_panel(self, panel: Panel, k: int) -> Image.Image:
         S = _SS
         img = panel.background.copy()
         dr = ImageDraw.Draw(img)
-        # ground grid
-        for seg in self._grid_segments(panel, k):
-            dr.line([tuple(seg[0]), tuple(seg[1])], fill=GRID_COLOR, width=S)
+        # ground grid, in depth bands that fade into the floor colour with distance
+        for color, segs in self._grid_segments(panel, k):
+            for seg in segs.tolist():
+                dr.line([seg[0], seg[1]], fill=color, width=S)
         parents = panel.track.parents
         xy = panel.xy[k]
         sxy = panel.shadow_xy[k]
@@ -479,12 +499,16 @@ class Renderer:
             dr.ellipse([b[0] - r, b[1] - r, b[0] + r, b[1] + r], fill=col)
             dr.ellipse([a[0] - r, a[1] - r, a[0] + r, a[1] + r], fill=col)
         if panel.head is not None:
-            h = panel.head
-            x, y = xy[h]
-            r = 0.1 * scale[h]
-            # the head joint is the base of the skull: draw the head a little above it
-            up = 0.07 * scale[h]
-            dr.ellipse([x - r, y - up - r, x + r, y - up + r], fill=center)
+            h, e = panel.head
+            if e is not None:
+                # a disc over the head bone (base of the skull to the top of the head)
+                x, y = (xy[h] + xy[e]) / 2
+                r = max(0.55 * float(np.hypot(*(xy[e] - xy[h]))), 0.08 * scale[h])
+            else:
+                x, y = xy[h]
+                r = 0.1 * scale[h]
+                y -= 0.07 * scale[h]
+            dr.ellipse([x - r, y - r, x + r, y + r], fill=center)
         if contacts is not None:
             for j in np.nonzero(contacts[k])[0]:
                 x, y = xy[j]
@@ -591,7 +615,8 @@ class VideoWriter:
         else:
             self.stream = self.container.add_stream("libx264", rate=rate)
             self.stream.pix_fmt = "yuv420p"
-            self.stream.options = {"crf": str(crf), "preset": "veryfast", "tune": "animation", "threads": "1"}
+            # two x264 threads: with more, they fight the renderer for this machine's cores
+            self.stream.options = {"crf": str(crf), "preset": "veryfast", "tune": "animation", "threads": "2"}
         self.stream.width, self.stream.height = width, height
         self.n = 0
         self._closed = False
@@ -690,3 +715,45 @@ def render_still(tracks: Sequence[Track], path: str | os.PathLike, time: float, 
 
     with atomic_write(path, "wb") as f:
         renderer.frame_image(min(k, renderer.n_frames - 1)).save(f, format="PNG")
+
+
+# ---------------------------------------------------------------------- motions
+def track_from_motion(motion, label: str = "", curve=None, contacts=None, color=None) -> Track:
+    """A Track from a ``retime.motion.Motion`` (FK, converted to metres).
+
+    ``curve``: the timing curve the motion was played through (its speed and source time are
+    shown).  ``contacts``: (F, J) bool per frame of ``motion``.
+    """
+    from retime.motion import end_site_positions, forward_kinematics
+
+    skeleton = motion.skeleton
+    positions, orientations = forward_kinematics(motion)
+    ends = end_site_positions(motion, positions, orientations)
+    names = list(skeleton.names)
+    parents = list(int(p) for p in skeleton.parents)
+    # end sites (toe tips, finger tips, top of the head) are drawn as extra joints
+    for j, _ in skeleton.end_sites:
+        names.append(f"{skeleton.names[j]}_end")
+        parents.append(int(j))
+    positions = np.concatenate([positions, ends], axis=1) * float(skeleton.meters_per_unit)
+    if contacts is not None:
+        contacts = np.asarray(contacts, dtype=bool)
+        if contacts.shape != (motion.n_frames, skeleton.n_joints):
+            raise RetimeError(f"contacts must have shape ({motion.n_frames}, {skeleton.n_joints}), got {contacts.shape}")
+        contacts = np.concatenate([contacts, np.zeros((motion.n_frames, ends.shape[1]), dtype=bool)], axis=1)
+    speed = source_time = None
+    if curve is not None:
+        t = np.minimum(np.arange(motion.n_frames) / motion.fps, curve.duration)
+        speed = np.asarray(curve.speed(t), dtype=np.float64)
+        source_time = np.asarray(curve(t), dtype=np.float64)
+    return Track(
+        positions,
+        np.asarray(parents, dtype=np.int64),
+        motion.fps,
+        label=label,
+        names=names,
+        speed=speed,
+        source_time=source_time,
+        contacts=contacts,
+        color=color,
+    )
