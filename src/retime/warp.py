@@ -259,6 +259,8 @@ def apply_timing(motion: Motion, curve: TimingCurve, fps: float | None = None) -
     u = _source_positions(curve, motion.fps, motion.n_frames, fps)
     i0, i1, w = _split(u, motion.n_frames)
     rot = slerp(motion.rotations[i0], motion.rotations[i1], w[:, None])
+    exact = w == 0.0  # output frames that land on a source frame copy it bit for bit
+    rot[exact] = motion.rotations[i0[exact]]
     tr = motion.translations[i0] + w[:, None, None] * (motion.translations[i1] - motion.translations[i0])
     return Motion(motion.skeleton, rot, tr, fps)
 

@@ -87,18 +87,23 @@ def read_asf(path) -> Asf:
                 key = tokens[0].lower()
                 if key == "length":
                     length_unit = float(tokens[1])
+                    if not (np.isfinite(length_unit) and length_unit > 0):
+                        raise FormatError(path, f"length unit must be a positive number, got {tokens[1]}", lineno)
                 elif key == "angle":
                     angle_scale = 1.0 if tokens[1].lower().startswith("rad") else np.pi / 180.0
             elif section == ":root":
                 key = tokens[0].lower()
                 if key == "order":
                     root_order = [t.upper() for t in tokens[1:]]
+                    bad = [t for t in root_order if t not in ("TX", "TY", "TZ", "RX", "RY", "RZ")]
+                    if bad or len(set(root_order)) != len(root_order):
+                        raise FormatError(path, "root order must list distinct TX TY TZ RX RY RZ", lineno)
                 elif key == "axis":
-                    root_axis = tokens[1].upper()
+                    root_axis = _axis_order(path, tokens[1], lineno)
                 elif key == "position":
-                    root_position = np.array([float(t) for t in tokens[1:4]])
+                    root_position = _numbers(path, tokens[1:4], 3, lineno, "position")
                 elif key == "orientation":
-                    root_orientation = np.array([float(t) for t in tokens[1:4]])
+                    root_orientation = _numbers(path, tokens[1:4], 3, lineno, "orientation")
             elif section == ":bonedata":
                 key = tokens[0].lower()
                 if key == "begin":
@@ -121,14 +126,12 @@ def read_asf(path) -> Asf:
                 elif key == "name":
                     bone.name = tokens[1]
                 elif key == "direction":
-                    bone.direction = np.array([float(t) for t in tokens[1:4]])
-                    if bone.direction.size != 3:
-                        raise ValueError
+                    bone.direction = _numbers(path, tokens[1:4], 3, lineno, "direction")
                 elif key == "length":
-                    bone.length = float(tokens[1])
+                    bone.length = _numbers(path, tokens[1:2], 1, lineno, "length")[0]
                 elif key == "axis":
-                    bone.axis = np.array([float(t) for t in tokens[1:4]])
-                    bone.axis_order = tokens[4].upper() if len(tokens) > 4 else "XYZ"
+                    bone.axis = _numbers(path, tokens[1:4], 3, lineno, "axis")
+                    bone.axis_order = _axis_order(path, tokens[4], lineno) if len(tokens) > 4 else "XYZ"
                 elif key == "dof":
                     bone.dof = [t.lower() for t in tokens[1:]]
                     bad = [d for d in bone.dof if d not in _DOF_NAMES]
@@ -156,6 +159,25 @@ def read_asf(path) -> Asf:
         raise FormatError(path, "no :hierarchy section (truncated?)")
     return _build_skeleton(path, bones, hierarchy, length_unit, angle_scale, root_order, root_axis,
                            root_position, root_orientation)
+
+
+def _numbers(path, tokens, count, lineno, what):
+    try:
+        vals = np.array([float(t) for t in tokens])
+    except ValueError:
+        raise FormatError(path, f"{what} holds a value that is not a number", lineno) from None
+    if vals.size != count:
+        raise FormatError(path, f"{what} needs {count} number{'s' if count > 1 else ''}, found {vals.size}", lineno)
+    if not np.all(np.isfinite(vals)):
+        raise FormatError(path, f"{what} holds a value that is not finite (NaN or inf)", lineno)
+    return vals
+
+
+def _axis_order(path, token, lineno):
+    order = token.upper()
+    if not re.fullmatch(r"[XYZ]{3}", order) or len(set(order)) != 3:
+        raise FormatError(path, f"axis order must be a permutation of XYZ, got {token!r}", lineno)
+    return order
 
 
 def _build_skeleton(path, bones, hierarchy, length_unit, angle_scale, root_order, root_axis,

@@ -17,7 +17,7 @@ from ..errors import FormatError
 from ..io_util import atomic_write
 from .fk import rest_height
 from .model import POSITION_CHANNELS, ROTATION_CHANNELS, Motion, Skeleton, guess_meters_per_unit
-from .quat import continuous
+from .quat import continuous, euler_to_quat
 
 _CHANNEL_NAMES = {c.lower(): c for c in ROTATION_CHANNELS + POSITION_CHANNELS}
 
@@ -49,7 +49,27 @@ class _Hierarchy:
         self.names, self.parents, self.offsets, self.channels, self.end_sites = [], [], [], [], []
 
 
+def _split_braces(lines):
+    """Put every '{' and '}' on a line of its own ("JOINT Hips {", "{ OFFSET 0 0 0", "} }")."""
+    out = []
+    for lineno, line in lines:
+        if "{" not in line and "}" not in line:
+            out.append((lineno, line))
+            continue
+        for piece in re.split(r"([{}])", line):
+            if piece.strip():
+                out.append((lineno, piece.strip()))
+    return out
+
+
 def _parse_hierarchy(path, lines):
+    """Parse up to MOTION; returns the hierarchy and the index of the MOTION line in ``lines``."""
+    motion_at = next((k for k, (_, ln) in enumerate(lines) if ln.split()[0].upper() == "MOTION"), len(lines))
+    h, _ = _parse_hierarchy_lines(path, _split_braces(lines[:motion_at + 1]))
+    return h, motion_at
+
+
+def _parse_hierarchy_lines(path, lines):
     h = _Hierarchy()
     stack = []  # joint index per open brace; -2 for an End Site block
     pending = None  # ('joint', idx) or ('end', parent) waiting for its '{'
@@ -93,9 +113,6 @@ def _parse_hierarchy(path, lines):
                 h.end_sites.append([pending[1], None])
                 stack.append(-2)
             pending = None
-            if len(tokens) > 1:  # "{ OFFSET ..." on one line: handle the rest as its own line
-                lines[i] = (lineno, line[line.index("{") + 1:].strip())
-                continue
         elif key == "}":
             if not stack:
                 raise FormatError(path, "'}' without a matching '{'", lineno)
@@ -177,7 +194,7 @@ def read_bvh(path, fps=None) -> Motion:
     if fps is None:
         if not (np.isfinite(frame_time) and frame_time > 0):
             raise FormatError(path, "Frame Time must be a positive number of seconds; or give --fps", header["time"][1])
-        fps = 1.0 / frame_time
+        fps = fps_from_frame_time(header["time"][0])
     n_channels = sum(len(c) for c in h.channels)
     data_lines = lines[i:]
     if len(data_lines) < n_frames:
@@ -194,19 +211,36 @@ def read_bvh(path, fps=None) -> Motion:
     return Motion(skeleton, rotations, translations, fps)
 
 
+def fps_from_frame_time(token: str) -> float:
+    """1 / Frame Time, snapped to the whole frame rate the printed frame time is a rounding of.
+
+    Exporters print 1/120 s as 0.00833333 (or 0.008333); read literally that is 120.000048 Hz. When
+    1/round(1/t) rounds to the printed digits, the whole rate is meant. 29.97 Hz (0.0333667) stays."""
+    frame_time = float(token)
+    fps = 1.0 / frame_time
+    whole = round(fps)
+    mantissa = token.lower().lstrip("+")
+    if whole >= 1 and "e" not in mantissa and "." in mantissa:
+        decimals = len(mantissa.split(".", 1)[1])
+        if abs(frame_time - 1.0 / whole) <= 0.5 * 10.0 ** -decimals * (1 + 1e-9):
+            return float(whole)
+    return fps
+
+
 def _parse_frames(path, data_lines, n_channels):
-    text = " ".join(ln for _, ln in data_lines)
+    rows = [ln.split() for _, ln in data_lines]
+    for f, row in enumerate(rows):
+        if len(row) != n_channels:
+            raise FormatError(path, f"frame {f + 1} has {len(row)} values, the hierarchy declares {n_channels} channels",
+                              data_lines[f][0])
     try:
-        values = np.array(text.split(), dtype=float)
+        values = np.array(rows, dtype=float).reshape(len(rows), n_channels)
     except ValueError:
         values = None
-    if values is not None and values.size == len(data_lines) * n_channels and np.all(np.isfinite(values)):
-        return values.reshape(len(data_lines), n_channels)
+    if values is not None and np.all(np.isfinite(values)):
+        return values
     for f, (lineno, line) in enumerate(data_lines):  # find and name the bad line
-        tokens = line.split()
-        if len(tokens) != n_channels:
-            raise FormatError(path, f"frame {f + 1} has {len(tokens)} values, the hierarchy declares {n_channels} channels", lineno)
-        _floats(path, tokens, lineno, f"frame {f + 1}")
+        _floats(path, line.split(), lineno, f"frame {f + 1}")
     raise FormatError(path, "cannot read the frame values", data_lines[0][0])
 
 
@@ -233,15 +267,8 @@ def channels_to_pose(skeleton, values):
     for seq, members in groups.items():
         joints = [j for j, _ in members]
         cols = np.array([c for _, c in members])  # (G, k)
-        angles = values[:, cols]  # (F, G, k)
-        if len(seq) <= 3:
-            rot = Rotation.from_euler(seq.upper(), angles.reshape(-1, len(seq)), degrees=True)
-            rotations[:, joints] = rot.as_quat().reshape(n_frames, len(joints), 4)
-        else:  # more than three rotation channels: compose one axis at a time (intrinsic)
-            rot = Rotation.identity(n_frames * len(joints))
-            for k, axis in enumerate(seq):
-                rot = rot * Rotation.from_euler(axis.upper(), angles[..., k].reshape(-1), degrees=True)
-            rotations[:, joints] = rot.as_quat().reshape(n_frames, len(joints), 4)
+        # BVH channels rotate about the joint's own (moving) axes in the listed order: intrinsic.
+        rotations[:, joints] = euler_to_quat(seq.upper(), values[:, cols], degrees=True)
     return rotations, translations
 
 
