@@ -7,7 +7,7 @@ import sys
 
 from ..errors import RetimeError
 
-COMMANDS = ["info", "convert", "linear"]
+COMMANDS = ["info", "convert", "linear", "edit"]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -35,6 +35,10 @@ def main(argv=None) -> int:
         return int(args.func(args) or 0)
     except RetimeError as e:
         print(f"retime {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:  # e.g. an output folder without write permission, a full disk
+        where = f"{e.filename}: " if getattr(e, "filename", None) else ""
+        print(f"retime {args.command}: error: {where}{e.strerror or e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"retime {args.command}: interrupted", file=sys.stderr)
