@@ -22,6 +22,8 @@ def atomic_write(path, mode="w", newline=None):
     directory = path.parent if str(path.parent) else Path(".")
     if not directory.is_dir():
         raise RetimeError(f"{path}: output folder {directory} does not exist")
+    if path.is_dir():
+        raise RetimeError(f"{path}: is a folder; give a file name for the output")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
     try:
         if "b" in mode:

@@ -10,8 +10,15 @@ from ..errors import RetimeError
 COMMANDS = ["info", "convert", "linear", "edit"]
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line (what is wrong, where to look) and exit code 2."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="retime",
         description="Change the timing of character motion (BVH, ASF/AMC) without touching its poses.",
         epilog="Run 'retime COMMAND --help' for a command's options and an example.",

@@ -60,7 +60,9 @@ def check_output(args, suffixes=(".bvh",)):
         raise RetimeError(f"{args.output}: output must end in {' or '.join(suffixes)}")
     check_not_input(args.output, args.motion, getattr(args, "asf", None))
     if getattr(args, "warp", None):
-        check_not_input(args.warp, args.motion, args.output)
+        if Path(args.warp).suffix.lower() != ".csv":
+            raise RetimeError(f"{args.warp}: the warp file must end in .csv")
+        check_not_input(args.warp, args.motion, args.output, getattr(args, "asf", None))
 
 
 def target_duration(args, motion):
