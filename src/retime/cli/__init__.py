@@ -7,7 +7,7 @@ import sys
 
 from ..errors import RetimeError
 
-COMMANDS = ["info", "convert", "linear", "edit"]
+COMMANDS = ["info", "convert", "linear", "edit", "plot", "render", "apply"]
 
 
 class _Parser(argparse.ArgumentParser):

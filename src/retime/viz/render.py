@@ -590,7 +590,8 @@ class VideoWriter:
     Use as a context manager; writes to a temporary file beside ``path`` and renames it on success.
     """
 
-    def __init__(self, path: str | os.PathLike, width: int, height: int, fps: float, crf: int = 20):
+    def __init__(self, path: str | os.PathLike, width: int, height: int, fps: float, crf: int = 20,
+                 palette_frames: Sequence[np.ndarray] | None = None):
         import av
 
         self.path = os.fspath(path)
@@ -609,9 +610,14 @@ class VideoWriter:
         self.tmp = os.path.join(directory, f".{base}.tmp{os.getpid()}{ext}")
         self.container = av.open(self.tmp, mode="w")
         rate = _fps_fraction(fps)
+        self._palette = None
         if ext == ".gif":
+            # GIF: one 256-colour palette for the whole clip (from sample frames, else the first
+            # frame), no dithering, so flat areas stay flat and the file stays small
             self.stream = self.container.add_stream("gif", rate=rate)
-            self.stream.pix_fmt = "rgb8"
+            self.stream.pix_fmt = "pal8"
+            if palette_frames:
+                self._palette = _make_palette(palette_frames)
         else:
             self.stream = self.container.add_stream("libx264", rate=rate)
             self.stream.pix_fmt = "yuv420p"
@@ -642,7 +648,14 @@ class VideoWriter:
                 frame = self._queue.get()
                 if frame is None:
                     break
-                vf = av.VideoFrame.from_ndarray(frame, format="rgb24")
+                if self.ext == ".gif":
+                    if self._palette is None:
+                        self._palette = _make_palette([frame])
+                    img, table = self._palette
+                    idx = np.asarray(Image.fromarray(frame).quantize(palette=img, dither=Image.Dither.NONE))
+                    vf = av.VideoFrame.from_ndarray((idx, table), format="pal8")
+                else:
+                    vf = av.VideoFrame.from_ndarray(frame, format="rgb24")
                 for packet in self.stream.encode(vf):
                     self.container.mux(packet)
             for packet in self.stream.encode():
@@ -677,6 +690,24 @@ class VideoWriter:
         return False
 
 
+def _make_palette(frames: Sequence[np.ndarray]) -> tuple[Image.Image, np.ndarray]:
+    """A 256-colour palette image and its (256, 4) ARGB table, from a mosaic of sample frames."""
+    small = [Image.fromarray(np.ascontiguousarray(f, dtype=np.uint8)).reduce(2) for f in frames]
+    w = sum(im.width for im in small)
+    h = max(im.height for im in small)
+    mosaic = Image.new("RGB", (w, h), tuple(int(c) for c in small[0].getpixel((0, 0))))
+    x = 0
+    for im in small:
+        mosaic.paste(im, (x, 0))
+        x += im.width
+    pal_img = mosaic.quantize(colors=255, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+    pal = np.array(pal_img.getpalette()[: 256 * 3], dtype=np.uint8).reshape(-1, 3)
+    table = np.zeros((256, 4), dtype=np.uint8)
+    table[: len(pal), 1:] = pal  # PyAV takes pal8 palette entries as A, R, G, B
+    table[:, 0] = 255
+    return pal_img, table
+
+
 def _progress(total: int, desc: str, quiet: bool):
     from retime.viz.progress import progress
 
@@ -693,7 +724,11 @@ def render_video(
 ) -> dict:
     """Render ``tracks`` side by side to a video file. Returns {'frames', 'width', 'height', 'fps', 'duration'}."""
     renderer = Renderer(tracks, fps=fps, panel_size=panel_size, **kwargs)
-    with VideoWriter(path, renderer.width, renderer.height, fps) as writer:
+    palette_frames = None
+    if os.fspath(path).lower().endswith(".gif"):
+        n = renderer.n_frames
+        palette_frames = [renderer.frame(k) for k in sorted({0, n // 3, (2 * n) // 3, n - 1})]
+    with VideoWriter(path, renderer.width, renderer.height, fps, palette_frames=palette_frames) as writer:
         with _progress(renderer.n_frames, "render", quiet) as bar:
             for k in range(renderer.n_frames):
                 writer.write(renderer.frame(k))

@@ -1,0 +1,413 @@
+"""Physics reports: reading them, the feasible-region plot (McCann et al. 2006, Fig. 4 and 6) and
+the per-frame contact / feasibility strip, and contact states for the renderer.
+
+A report (written by ``retime physics --report``) is a JSON object with ``feasible_fraction`` and
+``frames``, one record per output frame.  The fields read here (other fields are ignored):
+
+    t, s               output and source time of the frame (seconds)
+    pdd, pd2           the chosen timing (p'', p'^2) at the frame
+    feasible           whether (p'', p'^2) lies in the frame's feasible region
+    distance           distance from (p'', p'^2) to the region (0 inside)
+    torque_norm        norm of the joint torques at the chosen timing
+    contacts           names of the contact points (or joints) touching the ground, or a
+                       {name: bool} mapping
+    region             optional polygon [[p'', p'^2], ...] of the feasible region
+    objective          optional {"pdd": [...], "pd2": [...], "values": [[...]]}: the objective's
+                       magnitude on a grid (values[i][j] at pd2[i], pdd[j])
+
+Accepted alternative spellings: ``p_ddot``/``p_dot_sq`` or ``point: [p'', p'^2]`` for the chosen
+timing, ``polygon``/``hull`` for the region, ``in_region`` for feasible.  A report may also carry
+``regions: {frame: {"polygon": ..., "objective": ...}}`` for selected frames.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+from typing import Any
+
+import numpy as np
+
+from retime.errors import FormatError, RetimeError
+
+_POINT_KEYS = (("pdd", "pd2"), ("p_ddot", "p_dot_sq"), ("p_dd", "p_d2"))
+
+
+def load_report(path: str | os.PathLike) -> dict:
+    """Read and check a physics report; returns the JSON object with ``frames`` normalised."""
+    path = os.fspath(path)
+    try:
+        with open(path, encoding="utf-8") as f:
+            data = json.load(f)
+    except FileNotFoundError:
+        raise FormatError(path, "file not found") from None
+    except json.JSONDecodeError as exc:
+        raise FormatError(path, f"not valid JSON ({exc.msg})", line=exc.lineno) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise FormatError(path, f"cannot read ({exc})") from None
+    return normalise_report(data, path)
+
+
+def normalise_report(data: Any, path: str = "<report>") -> dict:
+    if not isinstance(data, dict) or not isinstance(data.get("frames"), list) or not data["frames"]:
+        raise FormatError(path, "not a physics report: expected an object with a non-empty 'frames' list")
+    frames = []
+    for i, rec in enumerate(data["frames"]):
+        if not isinstance(rec, dict):
+            raise FormatError(path, f"frame {i}: expected an object")
+        frames.append(_frame_record(rec, i, path))
+    out = dict(data)
+    out["frames"] = frames
+    regions = data.get("regions") or {}
+    if isinstance(regions, dict):
+        for key, extra in regions.items():
+            try:
+                k = int(key)
+            except (TypeError, ValueError):
+                continue
+            if 0 <= k < len(frames) and isinstance(extra, dict):
+                more = _frame_record({**extra}, k, path)
+                for field in ("region", "objective"):
+                    if more.get(field) is not None:
+                        frames[k][field] = more[field]
+    if "feasible_fraction" not in out:
+        flags = [f["feasible"] for f in frames if f["feasible"] is not None]
+        out["feasible_fraction"] = float(np.mean(flags)) if flags else None
+    return out
+
+
+def _frame_record(rec: dict, i: int, path: str) -> dict:
+    point = None
+    for a, b in _POINT_KEYS:
+        if a in rec and b in rec:
+            point = (rec[a], rec[b])
+            break
+    if point is None and isinstance(rec.get("point"), (list, tuple)) and len(rec["point"]) == 2:
+        point = tuple(rec["point"])
+    if point is not None:
+        try:
+            point = (float(point[0]), float(point[1]))
+        except (TypeError, ValueError):
+            raise FormatError(path, f"frame {i}: the timing (p'', p'^2) must be two numbers") from None
+    region = rec.get("region", rec.get("polygon", rec.get("hull")))
+    if region is not None:
+        try:
+            region = np.asarray(region, dtype=np.float64).reshape(-1, 2)
+        except (TypeError, ValueError):
+            raise FormatError(path, f"frame {i}: the region must be a list of [p'', p'^2] points") from None
+    objective = rec.get("objective")
+    if isinstance(objective, dict):
+        try:
+            objective = {
+                "pdd": np.asarray(objective["pdd"], dtype=np.float64),
+                "pd2": np.asarray(objective["pd2"], dtype=np.float64),
+                "values": np.asarray(objective["values"], dtype=np.float64),
+            }
+        except (KeyError, TypeError, ValueError):
+            raise FormatError(path, f"frame {i}: objective needs 'pdd', 'pd2' and 'values' arrays") from None
+        if objective["values"].shape != (len(objective["pd2"]), len(objective["pdd"])):
+            raise FormatError(path, f"frame {i}: objective values must be len(pd2) x len(pdd)")
+    else:
+        objective = None
+    contacts = rec.get("contacts", rec.get("contact"))
+    if isinstance(contacts, dict):
+        contacts = [str(k) for k, v in contacts.items() if v]
+    elif isinstance(contacts, (list, tuple)):
+        contacts = [str(c) for c in contacts]
+    elif contacts is None:
+        contacts = None
+    else:
+        raise FormatError(path, f"frame {i}: contacts must be a list of names or a {{name: bool}} object")
+    feasible = rec.get("feasible", rec.get("in_region"))
+    return {
+        "t": _num(rec.get("t", rec.get("time"))),
+        "s": _num(rec.get("s", rec.get("source_time"))),
+        "point": point,
+        "feasible": None if feasible is None else bool(feasible),
+        "distance": _num(rec.get("distance")),
+        "torque_norm": _num(rec.get("torque_norm")),
+        "contacts": contacts,
+        "region": region,
+        "objective": objective,
+    }
+
+
+def _num(v):
+    try:
+        return None if v is None else float(v)
+    except (TypeError, ValueError):
+        return None
+
+
+# ---------------------------------------------------------------------- contacts for the renderer
+def _contact_joint(name: str, names: list[str]) -> int | None:
+    """Joint index for a contact name: the joint itself, else side + part (heel/toe/foot/hand)."""
+    lower = [n.lower() for n in names]
+    key = name.lower()
+    if key in lower:
+        return lower.index(key)
+    side = "l" if re.match(r"^(l(?!ower)|left)", key) else "r" if re.match(r"^(r(?!oot)|right)", key) else None
+    if side is None:
+        return None
+    if re.search(r"toe|ball", key):
+        parts = ("toes", "toe", "toebase", "foot")
+    elif re.search(r"heel|ankle|foot|sole", key):
+        parts = ("foot", "ankle")
+    elif re.search(r"hand|wrist|finger", key):
+        parts = ("hand", "wrist")
+    else:
+        return None
+    prefixes = ("l", "left", "l_", "left_") if side == "l" else ("r", "right", "r_", "right_")
+    for part in parts:
+        for pre in prefixes:
+            if pre + part in lower:
+                return lower.index(pre + part)
+    return None
+
+
+def report_contacts(report: dict, skeleton, n_frames: int, path: str = "<report>") -> np.ndarray:
+    """(n_frames, J) bool: the joints in contact in each frame of the report."""
+    frames = report["frames"]
+    if len(frames) != n_frames:
+        raise RetimeError(f"{path}: the report has {len(frames)} frames, the motion {n_frames}")
+    names = list(skeleton.names)
+    out = np.zeros((n_frames, len(names)), dtype=bool)
+    unknown = set()
+    for k, rec in enumerate(frames):
+        for c in rec["contacts"] or ():
+            j = _contact_joint(c, names)
+            if j is None:
+                unknown.add(c)
+            else:
+                out[k, j] = True
+    if unknown and not out.any():
+        raise RetimeError(f"{path}: no joint matches the contact names {sorted(unknown)[:4]}")
+    return out
+
+
+def contact_names(report: dict) -> list[str]:
+    seen: dict[str, None] = {}
+    for rec in report["frames"]:
+        for c in rec["contacts"] or ():
+            seen.setdefault(c, None)
+    return sorted(seen, key=lambda n: (not n.lower().startswith("l"), n))
+
+
+# ---------------------------------------------------------------------- the region plot
+def _polygon_distance(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    """Euclidean distance from each point (N, 2) to a convex polygon (0 inside)."""
+    poly = _convex_ccw(poly)
+    n = len(poly)
+    if n == 0:
+        return np.full(len(points), np.inf)
+    if n == 1:
+        return np.linalg.norm(points - poly[0], axis=1)
+    a = poly
+    b = np.roll(poly, -1, axis=0)
+    ab = b - a
+    ap = points[:, None, :] - a[None, :, :]
+    denom = np.maximum((ab**2).sum(-1), 1e-300)
+    u = np.clip((ap * ab[None]).sum(-1) / denom, 0.0, 1.0)
+    closest = a[None] + u[..., None] * ab[None]
+    dist = np.linalg.norm(points[:, None, :] - closest, axis=-1).min(axis=1)
+    if n >= 3:
+        cross = ab[None, :, 0] * ap[..., 1] - ab[None, :, 1] * ap[..., 0]
+        inside = np.all(cross >= -1e-12, axis=1)
+        dist[inside] = 0.0
+    return dist
+
+
+def _convex_ccw(poly: np.ndarray) -> np.ndarray:
+    """The convex hull of the points, counter-clockwise (monotone chain)."""
+    pts = np.unique(np.asarray(poly, dtype=np.float64).reshape(-1, 2), axis=0)
+    if len(pts) < 3:
+        return pts
+
+    def cross(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower, upper = [], []
+    for p in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    for p in pts[::-1]:
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def pick_frame(report: dict) -> int:
+    """Default frame to show: the one farthest from its region, else the middle frame with a region."""
+    frames = report["frames"]
+    dists = [(f["distance"] or 0.0, i) for i, f in enumerate(frames) if f["region"] is not None]
+    if dists:
+        best = max(dists)
+        return best[1] if best[0] > 0 else dists[len(dists) // 2][1]
+    return len(frames) // 2
+
+
+def plot_regions(report: dict, frame: int | None, path=None, title: str | None = None, size=(11.0, 6.2), dpi=110):
+    """McCann Fig. 4/6 for one frame plus the per-frame contact / feasibility strip. Returns the frame index."""
+    from matplotlib import colors as mcolors
+    from matplotlib.patches import Polygon
+
+    from retime.viz.plot import _new_figure, _style, save_figure
+
+    frames = report["frames"]
+    n = len(frames)
+    if frame is None:
+        frame = pick_frame(report)
+    if not 0 <= frame < n:
+        raise RetimeError(f"--frame {frame} is outside the report (frames 0 to {n - 1})")
+    rec = frames[frame]
+    fig = _new_figure(*size, dpi=dpi)
+    gs = fig.add_gridspec(2, 2, height_ratios=[3.2, 1.25], width_ratios=[1.0, 1.0])
+    ax = fig.add_subplot(gs[0, 0])
+    ax_info = fig.add_subplot(gs[0, 1])
+    ax_strip = fig.add_subplot(gs[1, :])
+
+    # --- region and objective for the frame
+    _style(ax)
+    poly = rec["region"]
+    pts = [(0.0, 1.0)] + ([rec["point"]] if rec["point"] is not None else [])
+    extent_pts = np.array(pts + (poly.tolist() if poly is not None and len(poly) else []))
+    lo = extent_pts.min(axis=0)
+    hi = extent_pts.max(axis=0)
+    span = np.maximum(hi - lo, 0.5)
+    lo, hi = lo - 0.35 * span, hi + 0.35 * span
+    obj = rec["objective"]
+    heat_label = None
+    if obj is not None:
+        X, Y, Z = obj["pdd"], obj["pd2"], obj["values"]
+        lo = np.minimum(lo, [X.min(), Y.min()])
+        hi = np.maximum(hi, [X.max(), Y.max()])
+        heat_label = "objective"
+    elif poly is not None and len(poly):
+        X = np.linspace(lo[0], hi[0], 240)
+        Y = np.linspace(lo[1], hi[1], 240)
+        gx, gy = np.meshgrid(X, Y)
+        Z = _polygon_distance(np.stack([gx.ravel(), gy.ravel()], 1), poly).reshape(gx.shape) ** 2
+        heat_label = "squared distance to the region (Eq. 14, first term)"
+    if heat_label is not None:
+        Zp = np.abs(np.asarray(Z, dtype=np.float64))
+        positive = Zp[Zp > 0]
+        vmin = max(positive.min(), positive.max() * 1e-4) if positive.size else 1e-6
+        vmax = max(Zp.max(), vmin * 10)
+        mesh = ax.pcolormesh(X, Y, np.maximum(Zp, vmin), shading="auto", cmap="magma_r",
+                             norm=mcolors.LogNorm(vmin=vmin, vmax=vmax), rasterized=True, zorder=0)
+        cb = fig.colorbar(mesh, ax=ax, fraction=0.046, pad=0.02)
+        cb.set_label(heat_label, fontsize=8)
+        cb.ax.tick_params(labelsize=7)
+    if poly is not None and len(poly) >= 3:
+        hull = _convex_ccw(poly)
+        ax.add_patch(Polygon(hull, closed=True, facecolor=(0.30, 0.64, 0.42, 0.18), edgecolor="#2f7d4f",
+                             linewidth=2.0, zorder=2, label="feasible region"))
+    elif poly is not None and len(poly):
+        ax.plot(poly[:, 0], poly[:, 1], color="#2f7d4f", linewidth=2.0, zorder=2, label="feasible region")
+    else:
+        ax.text(0.5, 0.04, "no region stored for this frame", transform=ax.transAxes, ha="center", fontsize=8, color="#6b7280")
+    ax.plot([0.0], [1.0], marker="o", markersize=8, markerfacecolor="white", markeredgecolor="#111827",
+            markeredgewidth=1.6, linestyle="none", zorder=4, label="original timing (0, 1)")
+    if rec["point"] is not None:
+        ax.plot([rec["point"][0]], [rec["point"][1]], marker="*", markersize=14, color="#d6604d",
+                markeredgecolor="#7f1d1d", linestyle="none", zorder=5, label="chosen timing")
+    ax.axhline(0, color="#9ca3af", linewidth=0.8, zorder=1)
+    ax.axvline(0, color="#9ca3af", linewidth=0.8, zorder=1)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(min(lo[1], -0.05 * span[1]), hi[1])
+    ax.set_xlabel("p''  (source acceleration, 1/s)", fontsize=9)
+    ax.set_ylabel("p'^2  (squared playback speed)", fontsize=9)
+    ax.set_title(f"frame {frame}: feasible region in the (p'', p'^2) plane", fontsize=10, loc="left")
+    ax.legend(frameon=True, framealpha=0.9, fontsize=8, loc="upper left")
+
+    # --- numbers for the frame
+    ax_info.axis("off")
+    lines = [("frame", f"{frame} of {n}")]
+    if rec["t"] is not None:
+        lines.append(("output time", f"{rec['t']:.3f} s"))
+    if rec["s"] is not None:
+        lines.append(("source time", f"{rec['s']:.3f} s"))
+    if rec["point"] is not None:
+        pdd, pd2 = rec["point"]
+        lines.append(("p''", f"{pdd:.3f}"))
+        lines.append(("p'^2  (speed)", f"{pd2:.3f}  ({math.sqrt(max(pd2, 0.0)):.2f}x)"))
+    if rec["feasible"] is not None:
+        lines.append(("feasible", "yes" if rec["feasible"] else "no"))
+    if rec["distance"] is not None:
+        lines.append(("distance to region", f"{rec['distance']:.4g}"))
+    if rec["torque_norm"] is not None:
+        lines.append(("torque norm", f"{rec['torque_norm']:.4g}"))
+    lines.append(("contacts", ", ".join(rec["contacts"]) if rec["contacts"] else "none (flight)"))
+    ff = report.get("feasible_fraction")
+    if ff is not None:
+        lines.append(("feasible fraction (clip)", f"{float(ff):.3f}"))
+    for i, (k, v) in enumerate(lines):
+        y = 0.95 - i * 0.085
+        ax_info.text(0.02, y, k, fontsize=9.5, color="#6b7280", transform=ax_info.transAxes, va="top")
+        ax_info.text(0.48, y, v, fontsize=9.5, color="#111827", transform=ax_info.transAxes, va="top", wrap=True)
+
+    # --- per-frame strip
+    _contact_strip(ax_strip, report, frame)
+    if title:
+        fig.suptitle(title, fontsize=12, x=0.01, ha="left")
+    if path is not None:
+        save_figure(fig, path)
+    return frame
+
+
+def _contact_strip(ax, report: dict, frame: int | None = None) -> None:
+    """Rows of contact state per contact name and a feasibility row, over the report's frames."""
+    frames = report["frames"]
+    n = len(frames)
+    names = contact_names(report)
+    rows = names + ["feasible"]
+    img = np.ones((len(rows), n, 3))
+    contact_rgb = np.array([1.0, 0.69, 0.0])
+    for k, rec in enumerate(frames):
+        active = set(rec["contacts"] or ())
+        for r, name in enumerate(names):
+            if name in active:
+                img[r, k] = contact_rgb
+            else:
+                img[r, k] = (0.95, 0.96, 0.97)
+        feas = rec["feasible"]
+        img[-1, k] = (0.85, 0.87, 0.9) if feas is None else (0.30, 0.64, 0.42) if feas else (0.84, 0.33, 0.27)
+    ts = [rec["t"] for rec in frames]
+    if all(t is not None for t in ts) and n > 1:
+        x0, x1 = ts[0], ts[-1]
+        xlabel = "output time (s)"
+    else:
+        x0, x1 = 0, n - 1
+        xlabel = "output frame"
+    half = 0.5 * (x1 - x0) / max(n - 1, 1)
+    ax.imshow(img, aspect="auto", interpolation="nearest", extent=(x0 - half, x1 + half, len(rows) - 0.5, -0.5))
+    ax.set_yticks(range(len(rows)))
+    ax.set_yticklabels(rows, fontsize=8)
+    ax.set_xlabel(xlabel, fontsize=9)
+    ax.tick_params(labelsize=8)
+    for spine in ax.spines.values():
+        spine.set_color("#d1d5db")
+    if frame is not None:
+        x = x0 + (x1 - x0) * frame / max(n - 1, 1)
+        ax.axvline(x, color="#111827", linewidth=1.2)
+    ff = report.get("feasible_fraction")
+    title = "contacts (orange) and feasibility (green = feasible, red = not)"
+    if ff is not None:
+        title += f"; feasible fraction {float(ff):.3f}"
+    ax.set_title(title, fontsize=9, loc="left")
+
+
+def plot_contact_strip(report: dict, path=None, size=(10.0, 2.2), dpi=120):
+    """Only the per-frame contact / feasibility strip (for the demo report)."""
+    from retime.viz.plot import _new_figure, save_figure
+
+    fig = _new_figure(*size, dpi=dpi)
+    ax = fig.add_subplot(1, 1, 1)
+    _contact_strip(ax, report)
+    if path is not None:
+        save_figure(fig, path)
+    return fig
