@@ -127,6 +127,9 @@ def read_asf(path) -> Asf:
                     bone.name = tokens[1]
                 elif key == "direction":
                     bone.direction = _numbers(path, tokens[1:4], 3, lineno, "direction")
+                    norm = np.linalg.norm(bone.direction)
+                    if norm > 0:  # a unit vector, printed to a few digits: make it one again
+                        bone.direction = bone.direction / norm
                 elif key == "length":
                     bone.length = _numbers(path, tokens[1:2], 1, lineno, "length")[0]
                 elif key == "axis":
@@ -230,7 +233,7 @@ def _build_skeleton(path, bones, hierarchy, length_unit, angle_scale, root_order
         parents=np.array([remap[parents[i]] if parents[i] >= 0 else -1 for i in order]),
         offsets=np.array([offsets[i] for i in order]),
         channels=[channels[i] for i in order],
-        end_sites=[(remap[j], o) for j, o in end_sites],
+        end_sites=sorted(((remap[j], o) for j, o in end_sites), key=lambda e: e[0]),
         meters_per_unit=1.0,
         dof=[dofs[i] for i in order],
         limits=[limits[i] for i in order],

@@ -221,8 +221,9 @@ def fps_from_frame_time(token: str) -> float:
     whole = round(fps)
     mantissa = token.lower().lstrip("+")
     if whole >= 1 and "e" not in mantissa and "." in mantissa:
-        decimals = len(mantissa.split(".", 1)[1])
-        if abs(frame_time - 1.0 / whole) <= 0.5 * 10.0 ** -decimals * (1 + 1e-9):
+        rounding = 0.5 * 10.0 ** -len(mantissa.split(".", 1)[1])
+        # only when printed to about five significant digits or more: "0.012" is 83.3 Hz, not 83
+        if rounding < 1e-4 * frame_time and abs(frame_time - 1.0 / whole) <= rounding * (1 + 1e-9):
             return float(whole)
     return fps
 
@@ -313,13 +314,16 @@ def bvh_text(motion) -> str:
     for j, off in sk.end_sites:
         sites.setdefault(j, []).append(off)
 
-    def fmt(v):
-        return " ".join(f"{x:.6f}" for x in v)
+    def fmt(v):  # offsets keep every digit a file usually has (frame values are printed with 6 decimals)
+        return " ".join(f"{x + 0.0:.10g}" for x in v)
 
     def write_joint(j, depth):
         ind = "\t" * depth
         out.write(f"{ind}{'ROOT' if sk.parents[j] < 0 else 'JOINT'} {sk.names[j]}\n{ind}{{\n")
-        out.write(f"{ind}\tOFFSET {fmt(sk.offsets[j])}\n")
+        # A root whose position is animated gets OFFSET 0: tools differ on whether a root OFFSET adds
+        # to its position channels (retime, Blender: it does not), and a zero offset reads the same in both.
+        offset = np.zeros(3) if j == 0 and set(POSITION_CHANNELS) <= set(channels[j]) else sk.offsets[j]
+        out.write(f"{ind}\tOFFSET {fmt(offset)}\n")
         out.write(f"{ind}\tCHANNELS {len(channels[j])} {' '.join(channels[j])}\n")
         for c in children[j]:
             write_joint(c, depth + 1)
