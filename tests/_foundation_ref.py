@@ -104,7 +104,7 @@ def ref_bvh_positions(path):
 # -- synthetic BVH files ----------------------------------------------------------------------------
 def bvh_text(names, parents, offsets, channels, values, frame_time=1 / 30, end_sites=(), newline="\n",
              indent="\t", brace_on_joint_line=False, end_site_word="End Site", frames_declared=None):
-    """A BVH file in one of the many styles exporters use."""
+    """A BVH file in one of the many styles exporters use. Joints must be numbered depth first."""
     children = {j: [k for k, p in enumerate(parents) if p == j] for j in range(len(names))}
     out = ["HIERARCHY"]
 
@@ -117,7 +117,7 @@ def bvh_text(names, parents, offsets, channels, values, frame_time=1 / 30, end_s
         if brace_on_joint_line:
             out.append(head + " {")
         else:
-            out += [head, ind + "{"]
+            out.extend([head, ind + "{"])
         out.append(f"{ind}{indent}OFFSET {fmt(offsets[j])}")
         if channels[j]:
             out.append(f"{ind}{indent}CHANNELS {len(channels[j])} {' '.join(channels[j])}")
@@ -128,8 +128,8 @@ def bvh_text(names, parents, offsets, channels, values, frame_time=1 / 30, end_s
                 if brace_on_joint_line:
                     out.append(f"{ind}{indent}{end_site_word} {{")
                 else:
-                    out += [f"{ind}{indent}{end_site_word}", f"{ind}{indent}{{"]
-                out += [f"{ind}{indent * 2}OFFSET {fmt(off)}", f"{ind}{indent}}}"]
+                    out.extend([f"{ind}{indent}{end_site_word}", f"{ind}{indent}{{"])
+                out.extend([f"{ind}{indent * 2}OFFSET {fmt(off)}", f"{ind}{indent}}}"])
         out.append(ind + "}")
 
     joint(0, 0)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import io
 import re
+import warnings
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -292,7 +293,9 @@ def pose_to_channels(skeleton, rotations, translations):
         channels.append(chans)
         seq = "".join(c[0] for c in chans if c in ROTATION_CHANNELS)
         q = continuous(rotations[:, j])
-        euler = Rotation.from_quat(q).as_euler(seq.upper(), degrees=True)
+        with warnings.catch_warnings():  # at gimbal lock SciPy picks one of the equivalent angle sets: fine
+            warnings.simplefilter("ignore", UserWarning)
+            euler = Rotation.from_quat(q).as_euler(seq.upper(), degrees=True)
         euler = np.rad2deg(np.unwrap(np.deg2rad(euler), axis=0))
         k = 0
         for c in chans:
