@@ -245,7 +245,7 @@ def pick_frame(report: dict) -> int:
     frames = report["frames"]
     dists = [(f["distance"] or 0.0, i) for i, f in enumerate(frames) if f["region"] is not None]
     if dists:
-        best = max(dists)
+        best = max(dists, key=lambda d: d[0])  # the first of the farthest
         return best[1] if best[0] > 0 else dists[len(dists) // 2][1]
     return len(frames) // 2
 

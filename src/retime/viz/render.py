@@ -255,7 +255,7 @@ class Renderer:
         fps: float = 30.0,
         panel_size: tuple[int, int] = (480, 540),
         camera_distance: float | None = None,
-        follow_sigma: float = 0.35,
+        follow_sigma: float | None = 0.35,
         show_timeline: bool = True,
         title: str | None = None,
     ):
@@ -310,8 +310,10 @@ class Renderer:
         back = math.cos(yaw) * side + math.sin(yaw) * d
         back /= np.linalg.norm(back)
         root = pos[:, 0, :].copy()
-        sig = follow_sigma * self.fps
-        smooth = _gaussian_smooth(root, sig)
+        if follow_sigma is None:  # a still camera over the mean root position
+            smooth = np.broadcast_to(root.mean(axis=0), root.shape)
+        else:
+            smooth = _gaussian_smooth(root, min(follow_sigma * self.fps, 4.0 * len(root)))
         target = np.empty_like(smooth)
         target[:, 0] = smooth[:, 0]
         target[:, 2] = smooth[:, 2]
