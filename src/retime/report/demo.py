@@ -1,0 +1,345 @@
+"""``retime demo``: linear, guided and physics retiming of a bundled CMU jump to the same shorter
+duration, written as an HTML report with plots, a side-by-side video and the numbers.
+
+Everything the report shows is computed here from the clip: nothing is canned.  A method whose
+module is not importable (or fails) is listed in the report with the reason instead of its results.
+"""
+
+from __future__ import annotations
+
+import inspect
+import os
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from retime.errors import RetimeError
+
+DEFAULT_CLIP = "16_06.amc"
+METHODS = ("linear", "guided", "physics")
+
+
+@dataclass
+class MethodResult:
+    name: str
+    curve: Any = None
+    motion: Any = None
+    seconds: float | None = None
+    report: dict | None = None  # physics report (normalised), if any
+    feasible_fraction: float | None = None
+    flight_speed: float | None = None
+    error: str | None = None
+    settings: str = ""
+    files: dict = field(default_factory=dict)
+
+
+@dataclass
+class DemoResult:
+    out_dir: Path
+    clip: str
+    source_duration: float
+    duration: float
+    fps: float
+    n_frames: int
+    flight: tuple[float, float] | None
+    methods: list[MethodResult]
+    files: dict
+    total_seconds: float
+    render_fps: float | None = None
+
+    @property
+    def report_path(self) -> Path:
+        return self.out_dir / "report.html"
+
+
+# ---------------------------------------------------------------------- clip and flight phase
+def find_clip(name: str = DEFAULT_CLIP) -> Path:
+    """A bundled clip by name (``retime.data``), else the repository's data/cmu, else a path."""
+    p = Path(name)
+    if p.suffix and p.exists():
+        return p
+    try:
+        from retime.data import bundled_path
+
+        return Path(bundled_path(p.name))
+    except (ImportError, FileNotFoundError):
+        pass
+    here = Path(__file__).resolve()
+    for base in (here.parents[1] / "data" / "cmu", here.parents[3] / "data" / "cmu"):
+        if (base / p.name).exists():
+            return base / p.name
+    raise RetimeError(f"{name}: clip not found (neither bundled with retime nor an existing file)")
+
+
+def foot_contacts(motion) -> np.ndarray:
+    """(F, n) contact states of the feet: the physics module's detector when it is available,
+    else a plain height test on the foot and toe joints (within 4 cm of the clip's lowest point)."""
+    try:
+        from retime.physics.body import default_body
+        from retime.physics.contacts import detect_contacts
+
+        return np.asarray(detect_contacts(motion, default_body(motion.skeleton, motion=motion)), dtype=bool)
+    except Exception:  # noqa: BLE001 - the physics module is optional for this measurement
+        from retime.motion import forward_kinematics
+
+        pos, _ = forward_kinematics(motion)
+        pos = pos * motion.skeleton.meters_per_unit
+        feet = [j for j, n in enumerate(motion.skeleton.names) if any(k in n.lower() for k in ("foot", "toe", "ankle"))]
+        if not feet:
+            raise RetimeError("cannot find the feet of this skeleton")
+        h = pos[:, feet, 1]
+        floor = np.percentile(h.min(axis=1), 2)
+        return h < floor + 0.04
+
+
+def flight_phase(motion) -> tuple[float, float] | None:
+    """(start, end) source times of the longest stretch with no foot on the ground, or None."""
+    contact = foot_contacts(motion).any(axis=1)
+    air = ~contact
+    best = None
+    i, n = 0, len(air)
+    while i < n:
+        if air[i]:
+            j = i
+            while j < n and air[j]:
+                j += 1
+            if best is None or j - i > best[1] - best[0]:
+                best = (i, j)
+            i = j
+        else:
+            i += 1
+    if best is None or best[1] - best[0] < 3:
+        return None
+    return best[0] / motion.fps, (best[1] - 1) / motion.fps
+
+
+def flight_speed(curve, flight: tuple[float, float] | None) -> float | None:
+    """Mean playback speed over the flight: source flight time / output time spent in it."""
+    if flight is None or curve is None:
+        return None
+    s0, s1 = flight
+    t0, t1 = (float(v) for v in curve.inverse(np.array([s0, s1])))
+    if t1 <= t0:
+        return float("inf")
+    return (s1 - s0) / (t1 - t0)
+
+
+# ---------------------------------------------------------------------- the methods
+def _call(fn: Callable, motion, duration: float, **extra):
+    """Call a method's entry point with the arguments it accepts."""
+    params = inspect.signature(fn).parameters
+    kwargs = {k: v for k, v in extra.items() if k in params}
+    if "duration" in params:
+        kwargs["duration"] = duration
+    return fn(motion, **kwargs)
+
+
+def run_linear(motion, duration: float) -> MethodResult:
+    from retime.warp import uniform_warp
+
+    start = time.perf_counter()
+    curve = uniform_warp(motion.duration, duration)
+    return MethodResult("linear", curve=curve, seconds=time.perf_counter() - start,
+                        settings="uniform speed-up: p(t) = t * S / T")
+
+
+def run_guided(motion, duration: float) -> MethodResult:
+    try:
+        from retime.guided import guided_warp
+    except ImportError as exc:
+        return MethodResult("guided", error=f"not available in this installation (retime.guided.guided_warp: {exc.__class__.__name__})")
+    start = time.perf_counter()
+    out = _call(guided_warp, motion, duration, quiet=True)
+    seconds = time.perf_counter() - start
+    curve = out[0] if isinstance(out, tuple) else getattr(out, "curve", out)
+    return MethodResult("guided", curve=curve, seconds=seconds,
+                        settings="reference = the input itself (preserve its natural timing), default skip limit and k")
+
+
+def run_physics(motion, duration: float) -> MethodResult:
+    try:
+        from retime.physics import physics_warp
+    except ImportError as exc:
+        return MethodResult("physics", error=f"not available in this installation (retime.physics.physics_warp: {exc.__class__.__name__})")
+    start = time.perf_counter()
+    out = _call(physics_warp, motion, duration, quiet=True, objective="match")
+    seconds = time.perf_counter() - start
+    report = None
+    if isinstance(out, tuple):
+        curve = out[0]
+        report = out[1] if len(out) > 1 else None
+    else:
+        curve = getattr(out, "curve", out)
+        report = getattr(out, "report", None)
+    if report is not None and not isinstance(report, dict):
+        report = report.to_dict() if hasattr(report, "to_dict") else None
+    result = MethodResult("physics", curve=curve, seconds=seconds,
+                          settings="objective: match the original's torques and stay feasible (Eq. 14)")
+    if report is not None:
+        from retime.viz.regions import normalise_report
+
+        result.report = normalise_report(report)
+        ff = result.report.get("feasible_fraction")
+        result.feasible_fraction = None if ff is None else float(ff)
+    return result
+
+
+RUNNERS = {"linear": run_linear, "guided": run_guided, "physics": run_physics}
+
+
+# ---------------------------------------------------------------------- the demo
+def run_demo(
+    out_dir: str | os.PathLike = "retime-demo",
+    clip: str = DEFAULT_CLIP,
+    scale: float = 0.5,
+    methods=METHODS,
+    fps: float = 30.0,
+    panel_size: tuple[int, int] = (400, 460),
+    video: bool = True,
+    quiet: bool = False,
+) -> DemoResult:
+    """Run the demo and write ``out_dir/report.html`` with its files beside it."""
+    from retime.io_util import check_not_input
+    from retime.motion import load_motion, save_bvh
+    from retime.viz.plot import plot_timing
+    from retime.viz.progress import progress
+    from retime.warp import apply_timing, snap_duration
+
+    t_start = time.perf_counter()
+    if not (0 < scale < 10):
+        raise RetimeError(f"--scale must be between 0 and 10, got {scale}")
+    unknown = [m for m in methods if m not in RUNNERS]
+    if unknown:
+        raise RetimeError(f"unknown method {unknown[0]!r}; choose from {', '.join(METHODS)}")
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise RetimeError(f"{out}: exists and is not a folder")
+    out.mkdir(parents=True, exist_ok=True)
+    clip_path = find_clip(clip)
+    stem = clip_path.stem
+
+    steps = 2 + len(methods) + (1 if video else 0) + 1
+    with progress(steps, "retime demo", quiet, unit="step") as bar:
+        bar.set_postfix_str(f"loading {clip_path.name}")
+        motion = load_motion(clip_path)
+        duration = snap_duration(motion.duration * scale, motion.fps)
+        flight = flight_phase(motion)
+        bar.update(1)
+
+        results: list[MethodResult] = []
+        for name in methods:
+            bar.set_postfix_str(name)
+            try:
+                r = RUNNERS[name](motion, duration)
+            except Exception as exc:  # noqa: BLE001 - shown in the report, the demo goes on
+                r = MethodResult(name, error=f"{type(exc).__name__}: {exc}")
+                if os.environ.get("RETIME_DEBUG"):
+                    traceback.print_exc()
+            if r.curve is not None:
+                r.motion = apply_timing(motion, r.curve)
+                r.flight_speed = flight_speed(r.curve, flight)
+                warp = out / f"{stem}_{name}.csv"
+                bvh = out / f"{stem}_{name}.bvh"
+                check_not_input(warp, clip_path)
+                check_not_input(bvh, clip_path)
+                r.curve.to_csv(warp, motion.fps)
+                save_bvh(r.motion, bvh)
+                r.files = {"warp": warp.name, "bvh": bvh.name}
+                if r.report is not None:
+                    import json
+
+                    from retime.io_util import atomic_write
+
+                    rep = out / f"{stem}_{name}_report.json"
+                    with atomic_write(rep, "w") as f:
+                        json.dump(_jsonable(r.report), f)
+                    r.files["report"] = rep.name
+            results.append(r)
+            bar.update(1)
+
+        done = [r for r in results if r.curve is not None]
+        files: dict[str, str] = {}
+        bar.set_postfix_str("plots")
+        if done:
+            plot_timing([(r.name, r.curve) for r in done], out / "timing.png",
+                        title=f"{stem}: {motion.duration:.2f} s retimed to {duration:.2f} s", size=(10.5, 4.0))
+            files["timing"] = "timing.png"
+            plot_timing([(r.name, r.curve) for r in done], out / "timing.svg", size=(10.5, 4.0))
+            files["timing_svg"] = "timing.svg"
+        phys = next((r for r in done if r.report is not None), None)
+        if phys is not None:
+            from retime.viz.regions import pick_frame, plot_contact_strip, plot_regions
+
+            plot_contact_strip(phys.report, out / "contacts.png", size=(10.5, 2.2))
+            files["contacts"] = "contacts.png"
+            if any(f["region"] is not None for f in phys.report["frames"]):
+                frame = pick_frame(phys.report)
+                plot_regions(phys.report, frame, out / "region.png")
+                files["region"] = "region.png"
+                files["region_frame"] = str(frame)
+        bar.update(1)
+
+        render_fps = None
+        if video:
+            bar.set_postfix_str("video")
+            from retime.viz.render import Renderer, VideoWriter, track_from_motion
+
+            tracks = [track_from_motion(motion, "original")]
+            for r in done:
+                contacts = None
+                if r.report is not None:
+                    from retime.viz.regions import report_contacts
+
+                    try:
+                        contacts = report_contacts(r.report, r.motion.skeleton, r.motion.n_frames)
+                    except RetimeError:
+                        contacts = None
+                tracks.append(track_from_motion(r.motion, r.name, curve=r.curve, contacts=contacts))
+            renderer = Renderer(tracks, fps=fps, panel_size=panel_size)
+            # poster: the moment the uniformly sped-up clip is in mid-flight
+            t_poster = (0.5 * (flight[0] + flight[1]) if flight else 0.5 * motion.duration) * duration / motion.duration
+            mid = min(max(int(round(t_poster * fps)), 0), renderer.n_frames - 1)
+            with open(out / ".poster.tmp.png", "wb") as f:
+                renderer.frame_image(mid).save(f, format="PNG")
+            os.replace(out / ".poster.tmp.png", out / "compare.png")
+            t0 = time.perf_counter()
+            with VideoWriter(out / "compare.mp4", renderer.width, renderer.height, fps) as writer:
+                with progress(renderer.n_frames, "render", quiet, unit="frame") as fbar:
+                    for k in range(renderer.n_frames):
+                        writer.write(renderer.frame(k))
+                        fbar.update(1)
+            render_fps = renderer.n_frames / (time.perf_counter() - t0)
+            files["video"] = "compare.mp4"
+            files["poster"] = "compare.png"
+            files["video_size"] = f"{renderer.width}x{renderer.height}"
+            files["video_frames"] = str(renderer.n_frames)
+            bar.update(1)
+
+        result = DemoResult(
+            out_dir=out, clip=clip_path.name, source_duration=motion.duration, duration=duration, fps=motion.fps,
+            n_frames=motion.n_frames, flight=flight, methods=results, files=files,
+            total_seconds=0.0, render_fps=render_fps,
+        )
+        bar.set_postfix_str("report")
+        from retime.report.html import write_report
+
+        result.total_seconds = time.perf_counter() - t_start
+        write_report(result, scale=scale, video_fps=fps)
+        bar.update(1)
+    return result
+
+
+def _jsonable(obj):
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, (np.floating, np.integer, np.bool_)):
+        return obj.item()
+    return obj

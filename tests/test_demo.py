@@ -1,0 +1,148 @@
+"""`retime demo`: it finishes, writes a report whose links all resolve, and the report loads in a
+real headless browser (Chromium) without broken images or external requests."""
+
+import os
+import re
+import shutil
+from pathlib import Path
+
+import av
+import pytest
+
+from retime.cli import main
+from retime.report.demo import flight_phase, flight_speed, run_demo
+
+CHROMIUM = os.environ.get("RETIME_CHROMIUM", "/usr/bin/chromium")
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync", "--no-first-run"]
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    """A smaller, faster configuration of the real demo (all methods, small panels, 10 fps video)."""
+    out = tmp_path_factory.mktemp("demo")
+    return run_demo(out, fps=10, panel_size=(240, 280), quiet=True)
+
+
+def test_demo_writes_report_and_files(demo):
+    html = demo.report_path.read_text()
+    assert html.startswith("<!doctype html>")
+    links = re.findall(r'(?:src|href)="([^"]+)"', html)
+    assert links, "the report links nothing"
+    for link in links:
+        assert not re.match(r"^[a-z]+:", link), f"not a relative link: {link}"
+        assert (demo.out_dir / link).is_file(), f"missing file {link}"
+    assert "timing.png" in links and "compare.mp4" in links
+    # the numbers are in the report
+    lin = next(m for m in demo.methods if m.name == "linear")
+    assert f"{lin.curve.duration:.3f} s" in html
+    assert "flight speed" in html.lower() and "feasible fraction" in html.lower()
+    # every method either ran to the same duration or says why not
+    for m in demo.methods:
+        if m.curve is None:
+            assert m.error and m.error.split(" (")[0] in html
+        else:
+            assert abs(m.curve.duration - demo.duration) < 1e-9
+            assert m.motion.n_frames == round(demo.duration * demo.fps) + 1
+
+
+def test_demo_video_has_the_longest_duration(demo):
+    with av.open(str(demo.out_dir / "compare.mp4")) as c:
+        frames = list(c.decode(video=0))
+    n_panels = 1 + sum(m.curve is not None for m in demo.methods)
+    assert len(frames) == round(demo.source_duration * 10) + 1
+    assert (frames[0].width, frames[0].height) == (240 * n_panels, 280)
+
+
+def test_linear_flight_speed_is_the_uniform_speed(demo):
+    lin = next(m for m in demo.methods if m.name == "linear")
+    assert demo.flight is not None, "16_06 is a jump: a flight phase must be found"
+    s0, s1 = demo.flight
+    assert 0.15 < s1 - s0 < 0.8
+    assert lin.flight_speed == pytest.approx(demo.source_duration / demo.duration, rel=1e-6)
+
+
+def test_flight_speed_of_a_curve_that_keeps_the_flight():
+    from retime.warp import TimingCurve
+
+    # source 0..3 s into 2 s: flight 1.2..1.6 s plays at 1x, the rest faster
+    c = TimingCurve([0.0, 0.6, 1.0, 2.0], [0.0, 1.2, 1.6, 3.0])
+    assert flight_speed(c, (1.2, 1.6)) == pytest.approx(1.0)
+    assert flight_speed(c, None) is None
+
+
+def test_flight_phase_of_a_standing_clip_is_none():
+    from retime.data import bundled_path
+    from retime.motion import load_motion
+
+    m = load_motion(bundled_path("16_06.amc")).frames(slice(0, 100))  # standing still before the jump
+    assert flight_phase(m) is None
+
+
+def test_cli_demo_quick(tmp_path, capsys):
+    out = tmp_path / "quick"
+    assert main(["demo", "-o", str(out), "--methods", "linear", "--no-video", "--quiet"]) == 0
+    assert (out / "report.html").is_file()
+    assert "wrote" in capsys.readouterr().out
+    assert main(["demo", "-o", str(out), "--methods", "linear,warp9", "--no-video", "--quiet"]) == 2
+    assert "unknown method" in capsys.readouterr().err
+
+
+def _browser_or_skip():
+    """Chromium and Playwright, or skip with a reason (fail instead when CI is set)."""
+    reason = None
+    if not (shutil.which(CHROMIUM) or Path(CHROMIUM).is_file()):
+        reason = f"Chromium not found at {CHROMIUM} (apt-get install chromium)"
+    else:
+        try:
+            import playwright.sync_api  # noqa: F401
+        except ImportError:
+            reason = "Playwright for Python is not installed (pip install playwright)"
+    if reason:
+        if os.environ.get("CI"):
+            pytest.fail(f"CI is set but the browser check cannot run: {reason}")
+        pytest.skip(reason)
+
+
+def test_report_in_headless_chromium(demo):
+    _browser_or_skip()
+    from playwright.sync_api import sync_playwright
+
+    url = demo.report_path.resolve().as_uri()
+    external, failed, errors = [], [], []
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        try:
+            page = browser.new_page(viewport={"width": 1280, "height": 900})
+            page.on("request", lambda r: None if r.url.startswith(("file://", "data:")) else external.append(r.url))
+            page.on("requestfailed", lambda r: failed.append(r.url))
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(url, wait_until="load")
+            images = page.evaluate(
+                "() => Array.from(document.images).map(i => ({src: i.getAttribute('src'), ok: i.complete && i.naturalWidth > 0}))"
+            )
+            video = page.evaluate(
+                """() => new Promise(resolve => {
+                    const v = document.querySelector('video');
+                    if (!v) return resolve(null);
+                    const done = () => resolve({ready: v.readyState, error: v.error && v.error.code,
+                                                width: v.videoWidth, duration: v.duration});
+                    if (v.readyState >= 1) return done();
+                    v.addEventListener('loadedmetadata', done);
+                    v.addEventListener('error', done, true);
+                    setTimeout(done, 10000);
+                })"""
+            )
+            title = page.title()
+        finally:
+            browser.close()
+    assert images, "the report shows no images"
+    broken = [i["src"] for i in images if not i["ok"]]
+    assert not broken, f"broken images: {broken}"
+    assert not failed, f"failed requests: {failed}"
+    assert not external, f"the report fetched from outside: {external}"
+    assert not errors, errors
+    assert "retime demo" in title
+    assert video is not None and video["error"] is None and video["ready"] >= 1, video
+    assert video["width"] > 0
+    assert video["duration"] == pytest.approx(demo.source_duration, abs=0.15)
