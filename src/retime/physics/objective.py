@@ -1,0 +1,457 @@
+"""The retiming objective (McCann et al. 2006, Eq. 14, sec. 3.5-3.6), baked and compiled.
+
+    E = integral over output time of  alpha |(p'', p'^2) - closest(region)|^2
+                                    + beta  |tau(p'', p'^2) - tau'|^2 / tau_scale^2
+
+``tau`` are the actuated joint torques with the fan contact model of :mod:`retime.physics.forces`;
+the target ``tau'`` is zero (``"minimize"``, least effort) or the original motion's torques at its
+original timing (``"match"``). ``tau_scale^2`` is the mean squared original torque, so ``beta`` is
+dimensionless. Inside one fan wedge lambda is affine in (p'', p'^2), hence the squared torque error
+is a quadratic in (u, v) = (p'', p'^2): **six coefficients** per frame and wedge, of
+v^2 = p'^4, u^2 = p''^2, u v = p'^2 p'', v = p'^2, u = p'' and 1 (sec. 3.6). Baking them removes the
+dependence on the number of degrees of freedom from every later evaluation.
+
+**Integration.** The integral over output time is taken over source time instead,
+``E = integral f / p' ds``, with samples at a fixed spacing of 1 / (samples_per_frame * fps) in
+source time (4 per source frame by default, as the paper asks: "at least once every quarter of a
+source frame"). Between two frames the integrand is interpolated linearly (the paper interpolates the
+coefficients linearly). Each sample's output time is found by inverting the spline (Newton,
+amortized by locality), so the set of samples and their frames never change during optimization
+and the objective is smooth in the spline's parameters. Its gradient is analytic: with respect to the
+coefficients c and the duration T (each sample touches four coefficients), then through
+:meth:`TimingSpline.chain` to the optimizer's variables.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..errors import RetimeError
+
+OBJECTIVES = ("match", "minimize")
+
+
+@dataclass
+class BakedObjective:
+    """Everything an evaluation needs, in flat arrays (see :func:`bake`)."""
+
+    times: np.ndarray  # (n,) frame source times
+    poff: np.ndarray  # (n+1,) polygon offsets
+    px: np.ndarray
+    py: np.ndarray
+    cen: np.ndarray  # (n, 2)
+    mode: np.ndarray  # (n,) 0 = fan wedges, 1 = one torque model + fan distance, 2 = degenerate polygon
+    wc: np.ndarray  # (P, 6) torque coefficients per wedge (wedge k of frame i at poff[i] + k)
+    alpha: float
+    beta: float
+    tau_scale: float
+    s: np.ndarray  # (Ns,) source sample times
+    omega: np.ndarray  # (Ns,) trapezoid weights in source time
+    fi: np.ndarray  # (Ns,) frame index of each sample
+    fw: np.ndarray  # (Ns,) weight of frame fi + 1
+    cache: np.ndarray  # (n,) last wedge per frame (amortized lookup)
+    # unbaked data (NP-Obj): per wedge affine lambda and the dynamics
+    seconds: float = 0.0
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.times)
+
+
+def samples(times, samples_per_frame=4):
+    """Source sample times, trapezoid weights, frame index and interpolation weight."""
+    times = np.asarray(times, dtype=float)
+    spf = int(samples_per_frame)
+    if spf < 1:
+        raise RetimeError("samples per frame must be at least 1")
+    n = len(times)
+    sub = np.arange(spf) / spf
+    s = (times[:-1, None] + sub[None, :] * np.diff(times)[:, None]).ravel()
+    s = np.append(s, times[-1])
+    fi = np.minimum(np.repeat(np.arange(n - 1), spf), n - 2)
+    fi = np.append(fi, n - 2)
+    fw = np.append(np.tile(sub, n - 1), 1.0)
+    om = np.empty_like(s)
+    ds = np.diff(s)
+    om[0] = ds[0] / 2
+    om[-1] = ds[-1] / 2
+    om[1:-1] = (ds[:-1] + ds[1:]) / 2
+    return s, om, fi.astype(np.int64), fw
+
+
+def target_torques(kind, pd0, regions0):
+    """Target torques per frame (all rows): zeros or the original's (see forces.original_torques)."""
+    from .forces import original_torques
+
+    if kind == "minimize":
+        return np.zeros_like(np.asarray(pd0.c, dtype=float))
+    if kind == "match":
+        return original_torques(pd0, regions0)
+    raise RetimeError(f"unknown objective {kind!r} (use 'match' or 'minimize')")
+
+
+def actuated_mask(pd):
+    lo, hi = np.asarray(pd.tau_lo), np.asarray(pd.tau_hi)
+    return ~((lo == 0) & (hi == 0))
+
+
+def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_frame=4) -> BakedObjective:
+    """Bake Eq. 14 into per-frame, per-wedge coefficients (sec. 3.6)."""
+    import time
+
+    t0 = time.perf_counter()
+    act = actuated_mask(pd)
+    a = np.ascontiguousarray(np.asarray(pd.a, dtype=float)[:, act])
+    b = np.ascontiguousarray(np.asarray(pd.b, dtype=float)[:, act])
+    c = np.ascontiguousarray(np.asarray(pd.c, dtype=float)[:, act])
+    N = np.ascontiguousarray(np.asarray(pd.N, dtype=float)[:, act, :])
+    tgt = np.ascontiguousarray(np.asarray(target, dtype=float)[:, act])
+    if tau_scale is None:
+        tau_scale = float(np.sqrt(np.mean(np.sum(tgt ** 2, axis=1)))) or 1.0
+    poff = np.asarray(regions.offsets, dtype=np.int64)
+    px = np.ascontiguousarray(regions.verts[:, 0])
+    py = np.ascontiguousarray(regions.verts[:, 1])
+    cen = np.ascontiguousarray(regions.center, dtype=float)
+    lam = np.ascontiguousarray(regions.lam, dtype=float)
+    clam = np.ascontiguousarray(regions.center_lam, dtype=float)
+    has_contact = np.any(clam != 0, axis=1) | np.array(
+        [np.any(regions.polygon_lam(i) != 0) for i in range(regions.n_frames)])
+    mode = _fan_modes(poff, px, py, cen)
+    mode = np.where((mode == 0) & ~has_contact, 1, mode).astype(np.int64)
+    wc = np.zeros((len(px), 6))
+    _bake_kernel(a, b, c, N, tgt, poff, px, py, cen, lam, clam, mode, beta / tau_scale ** 2, wc)
+    s, om, fi, fw = samples(regions.times, samples_per_frame)
+    out = BakedObjective(np.asarray(regions.times, float), poff, px, py, cen, mode, wc, float(alpha),
+                         float(beta), float(tau_scale), s, om, fi, fw,
+                         np.zeros(len(poff) - 1, dtype=np.int64))
+    out.seconds = time.perf_counter() - t0
+    return out
+
+
+@njit(cache=True)
+def _fan_modes(poff, px, py, cen):
+    n = len(poff) - 1
+    mode = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        p0, p1 = poff[i], poff[i + 1]
+        nv = p1 - p0
+        if nv < 3:
+            mode[i] = 2
+            continue
+        area = 0.0
+        ext = 0.0
+        for k in range(nv):
+            j = p0 + (k + 1) % nv
+            area += px[p0 + k] * py[j] - py[p0 + k] * px[j]
+            ext = max(ext, abs(px[p0 + k]) + abs(py[p0 + k]))
+        if area <= 1e-12 * (1.0 + ext * ext):
+            mode[i] = 2
+            continue
+        for k in range(nv):
+            j = p0 + (k + 1) % nv
+            r0x, r0y = px[p0 + k] - cen[i, 0], py[p0 + k] - cen[i, 1]
+            r1x, r1y = px[j] - cen[i, 0], py[j] - cen[i, 1]
+            if r0x * r1y - r0y * r1x <= 1e-14 * (1.0 + ext * ext):
+                mode[i] = 2
+                break
+    return mode
+
+
+@njit(cache=True)
+def _coefs(A, B, D, scale, out):
+    aa = 0.0
+    bb = 0.0
+    ab = 0.0
+    bd = 0.0
+    ad = 0.0
+    dd = 0.0
+    for r in range(A.shape[0]):
+        aa += A[r] * A[r]
+        bb += B[r] * B[r]
+        ab += A[r] * B[r]
+        bd += B[r] * D[r]
+        ad += A[r] * D[r]
+        dd += D[r] * D[r]
+    out[0] = scale * bb  # v^2   (p'^4)
+    out[1] = scale * aa  # u^2   (p''^2)
+    out[2] = scale * 2.0 * ab  # u v   (p'^2 p'')
+    out[3] = scale * 2.0 * bd  # v     (p'^2)
+    out[4] = scale * 2.0 * ad  # u     (p'')
+    out[5] = scale * dd  # 1
+
+
+@njit(cache=True)
+def _bake_kernel(a, b, c, N, tgt, poff, px, py, cen, lam, clam, mode, scale, wc):
+    n, nr = a.shape
+    K = N.shape[2]
+    A = np.empty(nr)
+    B = np.empty(nr)
+    D = np.empty(nr)
+    for i in range(n):
+        p0, p1 = poff[i], poff[i + 1]
+        nvx = p1 - p0
+        Fc = N[i] @ clam[i]
+        if mode[i] != 0:
+            for r in range(nr):
+                A[r] = a[i, r]
+                B[r] = b[i, r]
+                D[r] = c[i, r] - Fc[r] - tgt[i, r]
+            for k in range(nvx):
+                _coefs(A, B, D, scale, wc[p0 + k])
+            continue
+        F = np.empty((nvx, nr))
+        for k in range(nvx):
+            F[k] = N[i] @ lam[p0 + k]
+        cu, cv = cen[i, 0], cen[i, 1]
+        for k in range(nvx):
+            l = (k + 1) % nvx
+            e0x, e0y = px[p0 + k] - cu, py[p0 + k] - cv
+            e1x, e1y = px[p0 + l] - cu, py[p0 + l] - cv
+            det = e0x * e1y - e1x * e0y
+            m00, m01 = e1y / det, -e1x / det
+            m10, m11 = -e0y / det, e0x / det
+            for r in range(nr):
+                dk = F[k, r] - Fc[r]
+                dl = F[l, r] - Fc[r]
+                nlu = m00 * dk + m10 * dl
+                nlv = m01 * dk + m11 * dl
+                nl0 = Fc[r] - cu * nlu - cv * nlv
+                A[r] = a[i, r] - nlu
+                B[r] = b[i, r] - nlv
+                D[r] = c[i, r] - nl0 - tgt[i, r]
+            _coefs(A, B, D, scale, wc[p0 + k])
+
+
+# ------------------------------------------------------------------------------------------------
+# Evaluation
+# ------------------------------------------------------------------------------------------------
+
+@njit(cache=True, inline="always")
+def _closest_brute(p0, p1, px, py, u, v):
+    nv = p1 - p0
+    if nv == 1:
+        return px[p0], py[p0]
+    bd = 1e300
+    qx, qy = px[p0], py[p0]
+    for k in range(nv):
+        ax, ay = px[p0 + k], py[p0 + k]
+        j = p0 + (k + 1) % nv
+        ex, ey = px[j] - ax, py[j] - ay
+        ee = ex * ex + ey * ey
+        t = 0.0
+        if ee > 0:
+            t = ((u - ax) * ex + (v - ay) * ey) / ee
+            t = min(1.0, max(0.0, t))
+        cx, cy = ax + t * ex, ay + t * ey
+        d = (cx - u) ** 2 + (cy - v) ** 2
+        if d < bd:
+            bd = d
+            qx, qy = cx, cy
+    return qx, qy
+
+
+@njit(cache=True, inline="always")
+def _edge_proj(p0, nv, e, px, py, u, v):
+    """Closest point of edge e to (u, v) and the unclamped edge parameter."""
+    f = e + 1 if e + 1 < nv else 0
+    ax, ay = px[p0 + e], py[p0 + e]
+    ex, ey = px[p0 + f] - ax, py[p0 + f] - ay
+    ee = ex * ex + ey * ey
+    t = ((u - ax) * ex + (v - ay) * ey) / ee if ee > 0 else 0.0
+    tc = min(1.0, max(0.0, t))
+    return ax + tc * ex, ay + tc * ey, t
+
+
+@njit(cache=True)
+def _frame_eval(i, u, v, poff, px, py, cen, mode, wc, cache, alpha):
+    """f, df/du, df/dv of frame i at (u, v) = (p'', p'^2)."""
+    p0, p1 = poff[i], poff[i + 1]
+    nv = p1 - p0
+    md = mode[i]
+    if md == 2:
+        qx, qy = _closest_brute(p0, p1, px, py, u, v)
+        k = 0
+        # a degenerate polygon is a point or a segment: its interior is empty
+    else:
+        cu, cv = cen[i, 0], cen[i, 1]
+        dx, dy = u - cu, v - cv
+        k = cache[i]
+        if k >= nv:
+            k = 0
+        # walk the fan to the wedge containing (u, v)
+        for _ in range(nv + 1):
+            j = k + 1 if k + 1 < nv else 0
+            r0x, r0y = px[p0 + k] - cu, py[p0 + k] - cv
+            r1x, r1y = px[p0 + j] - cu, py[p0 + j] - cv
+            c0 = r0x * dy - r0y * dx
+            c1 = dx * r1y - dy * r1x
+            if c0 >= 0.0 and c1 > 0.0:
+                break
+            if c0 < 0.0:
+                k = k - 1 if k > 0 else nv - 1
+            else:
+                k = j
+        cache[i] = k
+        j = k + 1 if k + 1 < nv else 0
+        ax, ay = px[p0 + k], py[p0 + k]
+        ex, ey = px[p0 + j] - ax, py[p0 + j] - ay
+        side = ex * (v - ay) - ey * (u - ax)
+        if side >= 0.0:
+            qx, qy = u, v
+        else:
+            # outside, beyond edge k: walk along the boundary while the distance drops
+            qx, qy, t = _edge_proj(p0, nv, k, px, py, u, v)
+            d = (qx - u) ** 2 + (qy - v) ** 2
+            if t < 0.0 or t > 1.0:
+                step = -1 if t < 0.0 else 1
+                e = k
+                for _ in range(nv):
+                    e = e + step
+                    if e < 0:
+                        e = nv - 1
+                    elif e >= nv:
+                        e = 0
+                    q2x, q2y, t2 = _edge_proj(p0, nv, e, px, py, u, v)
+                    d2 = (q2x - u) ** 2 + (q2y - v) ** 2
+                    if d2 < d:
+                        qx, qy, d = q2x, q2y, d2
+                        if 0.0 <= t2 <= 1.0:
+                            break
+                    else:
+                        break
+    w = wc[p0 + k] if md == 0 else wc[p0]
+    g = w[0] * v * v + w[1] * u * u + w[2] * u * v + w[3] * v + w[4] * u + w[5]
+    gu = 2.0 * w[1] * u + w[2] * v + w[4]
+    gv = 2.0 * w[0] * v + w[2] * u + w[3]
+    du, dv = u - qx, v - qy
+    f = alpha * (du * du + dv * dv) + g
+    return f, 2.0 * alpha * du + gu, 2.0 * alpha * dv + gv
+
+
+@njit(cache=True)
+def _evaluate(c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, mode, wc, cache, alpha,
+              want_grad, gc):
+    """Objective (and gradient w.r.t. c and T when want_grad) of the spline with coefficients c."""
+    n_span = len(breaks) - 1
+    # power coefficients of each span
+    Asp = np.empty((n_span, 4))
+    for m in range(n_span):
+        for r in range(4):
+            acc = 0.0
+            for l in range(4):
+                acc += Msp[m, r, l] * c[m + l]
+            Asp[m, r] = acc
+    if want_grad:
+        for k in range(len(gc)):
+            gc[k] = 0.0
+    gT = 0.0
+    total = 0.0
+    m = 0
+    x = 0.0
+    S = c[len(c) - 1]
+    invT = 1.0 / T
+    ns = len(s)
+    P1 = 1.0
+    s_prev = s[0]
+    for jj in range(ns):
+        sj = s[jj]
+        while m + 1 < n_span and sj >= Asp[m + 1, 0]:
+            m += 1
+            x = 0.0
+            P1 = Asp[m, 1]
+            s_prev = Asp[m, 0]
+        h = breaks[m + 1] - breaks[m]
+        a0, a1, a2, a3 = Asp[m, 0], Asp[m, 1], Asp[m, 2], Asp[m, 3]
+        # predictor from the previous sample, then safeguarded Newton on [0, h]
+        if P1 > 0.0:
+            x += (sj - s_prev) / P1
+        lo, hi = 0.0, h
+        if x < lo or x > hi:
+            x = 0.5 * h
+        for _ in range(60):
+            fx = a0 + x * (a1 + x * (a2 + x * a3)) - sj
+            if abs(fx) <= 1e-13 * (1.0 + S):
+                break
+            if fx > 0:
+                hi = x
+            else:
+                lo = x
+            d = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
+            xn = x - fx / d if d > 0 else 0.5 * (lo + hi)
+            if xn <= lo or xn >= hi:
+                xn = 0.5 * (lo + hi)
+            if hi - lo <= 1e-16 * (1.0 + h):
+                break
+            x = xn
+        s_prev = sj
+        P1 = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
+        P2 = 2.0 * a2 + 6.0 * a3 * x
+        P3 = 6.0 * a3
+        pd = P1 * invT
+        pdd = P2 * invT * invT
+        u = pdd
+        v = pd * pd
+        i = fi[jj]
+        wgt = fw[jj]
+        f, fu, fv = 0.0, 0.0, 0.0
+        if wgt < 1.0:
+            f0, fu0, fv0 = _frame_eval(i, u, v, poff, px, py, cen, mode, wc, cache, alpha)
+            f += (1.0 - wgt) * f0
+            fu += (1.0 - wgt) * fu0
+            fv += (1.0 - wgt) * fv0
+        if wgt > 0.0:
+            f1, fu1, fv1 = _frame_eval(i + 1, u, v, poff, px, py, cen, mode, wc, cache, alpha)
+            f += wgt * f1
+            fu += wgt * fu1
+            fv += wgt * fv1
+        om = omega[jj]
+        total += om * f / pd
+        if want_grad:
+            # h = f / p' with u = p'', v = p'^2
+            hp = om * (2.0 * fv - f / (pd * pd))
+            hpp = om * fu / pd
+            gT += hp * (-pd * invT) + hpp * (-2.0 * pdd * invT)
+            for l in range(4):
+                N0 = Msp[m, 0, l] + x * (Msp[m, 1, l] + x * (Msp[m, 2, l] + x * Msp[m, 3, l]))
+                N1 = Msp[m, 1, l] + x * (2.0 * Msp[m, 2, l] + 3.0 * x * Msp[m, 3, l])
+                N2 = 2.0 * Msp[m, 2, l] + 6.0 * x * Msp[m, 3, l]
+                dtau = -N0 / P1
+                dpd = (N1 + P2 * dtau) * invT
+                dpdd = (N2 + P3 * dtau) * invT * invT
+                gc[m + l] += hp * dpd + hpp * dpdd
+    return total, gT
+
+
+def evaluate(obj: BakedObjective, spline, w=None, grad=False):
+    """E(w) (and dE/dw)."""
+    w = spline.w if w is None else w
+    c = spline.coefficients(w)
+    T = spline.duration_of(w)
+    gc = np.zeros(len(c))
+    val, gT = _evaluate(c, T, spline.breaks, spline.span_matrices, obj.s, obj.omega, obj.fi, obj.fw,
+                        obj.poff, obj.px, obj.py, obj.cen, obj.mode, obj.wc, obj.cache, obj.alpha,
+                        grad, gc)
+    if not grad:
+        return float(val)
+    return float(val), spline.chain(gc, gT, w)
+
+
+def evaluate_c(obj: BakedObjective, spline, c, T, grad=False):
+    """E and (dE/dc, dE/dT) for raw coefficients (tests, benchmarks)."""
+    gc = np.zeros(len(c))
+    val, gT = _evaluate(np.asarray(c, float), float(T), spline.breaks, spline.span_matrices, obj.s, obj.omega,
+                        obj.fi, obj.fw, obj.poff, obj.px, obj.py, obj.cen, obj.mode, obj.wc, obj.cache,
+                        obj.alpha, grad, gc)
+    return (float(val), gc, float(gT)) if grad else float(val)
+
+
+def frame_terms(obj: BakedObjective, i, u, v):
+    """(distance to region, torque term) of frame i at (u, v): for reports and tests."""
+    f, _, _ = _frame_eval(int(i), float(u), float(v), obj.poff, obj.px, obj.py, obj.cen, obj.mode, obj.wc,
+                          obj.cache, 0.0)
+    fa, _, _ = _frame_eval(int(i), float(u), float(v), obj.poff, obj.px, obj.py, obj.cen, obj.mode, obj.wc,
+                           obj.cache, 1.0)
+    return math.sqrt(max(fa - f, 0.0)), f

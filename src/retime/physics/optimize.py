@@ -1,0 +1,341 @@
+"""Optimizing the timing curve (McCann et al. 2006, sec. 3.6), and an interactive session.
+
+Variables: the spline's derivative coefficients ``w`` (see :mod:`retime.physics.spline`), bounded
+below by ``w_min`` (the curve never stops or runs backwards) and above by ``w_max``. The end point
+p(T) = S holds by construction; a free duration is part of the same variables. What remains are
+equality constraints, each a smooth function of ``w``:
+
+* **keytimes** (point constraints): p(t*) = s*;
+* **locked control points**: c_k = value.
+
+Methods:
+
+* ``"gd"``: the paper's gradient descent (projected onto the bounds, Armijo backtracking);
+* ``"lbfgs"`` (default): quasi-Newton, SciPy's L-BFGS-B with the bounds;
+* ``"slsqp"``: SciPy's SLSQP, which takes the equality constraints directly.
+
+``gd`` and ``lbfgs`` take the equality constraints through an augmented Lagrangian (outer updates of
+the multipliers), which converges to them exactly; each outer step warm-starts from the last.
+
+:class:`RetimingSession` keeps the current solution so that an editor can move, add, remove or lock
+one control point, add or drop a keytime, and re-converge from where it was.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import minimize
+
+from ..errors import RetimeError
+from .objective import BakedObjective, evaluate
+from .spline import TimingSpline
+
+METHODS = ("lbfgs", "gd", "slsqp")
+
+
+@dataclass
+class SolveInfo:
+    method: str
+    objective: float
+    iterations: int
+    evaluations: int
+    seconds: float
+    constraint_violation: float
+    converged: bool
+    message: str = ""
+
+
+@dataclass
+class Problem:
+    """Objective + spline + constraints."""
+
+    obj: BakedObjective
+    spline: TimingSpline
+    keytimes: list = field(default_factory=list)  # [(source_time, output_time)]
+    locks: dict = field(default_factory=dict)  # control point index -> source time
+    w_min: float = 0.02
+    w_max: float = 12.0
+    gauge: float = 1e-3
+    n_evals: int = 0
+
+    def bounds(self):
+        n = len(self.spline.w)
+        return [(self.w_min, self.w_max)] * n
+
+    def fun(self, w):
+        """Objective and gradient (plus a tiny gauge fixing the free scale of w at a fixed duration)."""
+        self.n_evals += 1
+        val, g = evaluate(self.obj, self.spline, w, grad=True)
+        sp = self.spline
+        if sp.fixed_T is not None and self.gauge > 0:
+            W = float(np.dot(w, sp.d))
+            r = W * sp.fixed_T / sp.S - 1.0
+            val += self.gauge * r * r
+            g = g + 2.0 * self.gauge * r * (sp.fixed_T / sp.S) * sp.d
+        return val, g
+
+    def value(self, w):
+        return evaluate(self.obj, self.spline, w, grad=False)
+
+    @property
+    def n_eq(self):
+        return len(self.keytimes) + len(self.locks)
+
+    def eq(self, w):
+        """Equality constraints g(w) (seconds) and their Jacobian (n_eq, n_w)."""
+        sp = self.spline
+        c = sp.coefficients(w)
+        T = sp.duration_of(w)
+        rows, jac = [], []
+        if self.keytimes:
+            from scipy.interpolate import BSpline
+
+            for s_star, t_star in self.keytimes:
+                tau = min(max(t_star / T, 0.0), 1.0)
+                Nb = BSpline.design_matrix(np.array([tau]), sp.xi, 3).toarray()[0]
+                dN = _basis_derivative(sp.xi, tau)
+                val = float(Nb @ c) - s_star
+                gT = -float(dN @ c) * tau / T if 0.0 < tau < 1.0 else 0.0
+                rows.append(val)
+                jac.append(sp.chain(Nb, gT, w))
+        for k, value in sorted(self.locks.items()):
+            gc = np.zeros(len(c))
+            gc[k] = 1.0
+            rows.append(float(c[k]) - value)
+            jac.append(sp.chain(gc, 0.0, w))
+        if not rows:
+            return np.zeros(0), np.zeros((0, len(w)))
+        return np.array(rows), np.array(jac)
+
+
+def _basis_derivative(xi, tau):
+    from scipy.interpolate import BSpline
+
+    n_c = len(xi) - 4
+    out = np.zeros(n_c)
+    for k in range(n_c):
+        coef = np.zeros(n_c)
+        coef[k] = 1.0
+        out[k] = BSpline(xi, coef, 3).derivative(1)(tau)
+    return out
+
+
+def check_keytimes(keytimes, S, T=None):
+    kt = sorted((float(s), float(t)) for s, t in keytimes)
+    for s, t in kt:
+        if not (0.0 < s < S):
+            raise RetimeError(f"keytime source time {s:g} s is outside the motion (0, {S:g}) s")
+        if t <= 0.0 or (T is not None and t >= T):
+            raise RetimeError(f"keytime output time {t:g} s is outside the output (0, {T if T else 'end'}) s")
+    for (s0, t0), (s1, t1) in zip(kt, kt[1:]):
+        if not (s1 > s0 and t1 > t0):
+            raise RetimeError(f"keytimes {s0:g}={t0:g} and {s1:g}={t1:g} are out of order: timing must not run backwards")
+    return kt
+
+
+# ------------------------------------------------------------------------------------------------
+# Solvers
+# ------------------------------------------------------------------------------------------------
+
+def _lbfgs_inner(fun, w0, bounds, max_iter, tol):
+    res = minimize(fun, w0, jac=True, method="L-BFGS-B", bounds=bounds,
+                   options={"maxiter": max_iter, "ftol": tol, "gtol": 1e-10, "maxcor": 20})
+    return res.x, int(res.nit), res.success, str(res.message)
+
+
+def _gd_inner(fun, w0, bounds, max_iter, tol):
+    lo = np.array([b[0] for b in bounds])
+    hi = np.array([b[1] for b in bounds])
+    w = np.clip(w0, lo, hi)
+    f, g = fun(w)
+    step = 1.0 / max(np.linalg.norm(g), 1e-12)
+    it = 0
+    for it in range(1, max_iter + 1):
+        while True:
+            wn = np.clip(w - step * g, lo, hi)
+            fn, gn = fun(wn)
+            dec = float(g @ (w - wn))
+            if fn <= f - 1e-4 * dec or step < 1e-16:
+                break
+            step *= 0.5
+        converged = abs(f - fn) <= tol * max(1.0, abs(f))
+        w, f, g = wn, fn, gn
+        step *= 2.0
+        if converged:
+            return w, it, True, "converged"
+    return w, it, False, "iteration limit"
+
+
+def solve(problem: Problem, w0=None, method="lbfgs", max_iter=500, tol=1e-9, eq_tol=1e-6,
+          max_seconds=None) -> tuple[np.ndarray, SolveInfo]:
+    """Minimize the objective from ``w0`` (default: the spline's current w)."""
+    if method not in METHODS:
+        raise RetimeError(f"unknown optimizer {method!r} (use {', '.join(METHODS)})")
+    t0 = time.perf_counter()
+    problem.n_evals = 0
+    bounds = problem.bounds()
+    lo = np.array([b[0] for b in bounds])
+    hi = np.array([b[1] for b in bounds])
+    w = np.clip(np.asarray(problem.spline.w if w0 is None else w0, dtype=float), lo, hi)
+    iters = 0
+    ok = True
+    msg = ""
+    if method == "slsqp":
+        cons = []
+        if problem.n_eq:
+            cons = [{"type": "eq", "fun": lambda x: problem.eq(x)[0], "jac": lambda x: problem.eq(x)[1]}]
+        res = minimize(problem.fun, w, jac=True, method="SLSQP", bounds=bounds, constraints=cons,
+                       options={"maxiter": max_iter, "ftol": tol})
+        w, iters, ok, msg = np.clip(res.x, lo, hi), int(res.nit), bool(res.success), str(res.message)
+    else:
+        inner = _lbfgs_inner if method == "lbfgs" else _gd_inner
+        if problem.n_eq == 0:
+            w, iters, ok, msg = inner(problem.fun, w, bounds, max_iter, tol)
+        else:
+            w, iters, ok, msg = _augmented_lagrangian(problem, w, bounds, inner, max_iter, tol, eq_tol,
+                                                      t0, max_seconds)
+    val = problem.value(w)
+    viol = float(np.max(np.abs(problem.eq(w)[0]))) if problem.n_eq else 0.0
+    info = SolveInfo(method, val, iters, problem.n_evals, time.perf_counter() - t0, viol,
+                     bool(ok) and viol <= max(eq_tol, 1e-9) * 10, msg)
+    return w, info
+
+
+def _augmented_lagrangian(problem, w, bounds, inner, max_iter, tol, eq_tol, t0, max_seconds):
+    m = problem.n_eq
+    mu = np.zeros(m)
+    f0, _ = problem.fun(w)
+    S = problem.spline.S
+    rho = 1e3 * max(1.0, abs(f0)) / max(S, 1e-3) ** 2
+    iters = 0
+    ok = False
+    msg = ""
+    last = np.inf
+    for outer in range(30):
+        def fun(x, mu=mu, rho=rho):
+            f, g = problem.fun(x)
+            h, J = problem.eq(x)
+            return f + mu @ h + 0.5 * rho * h @ h, g + J.T @ (mu + rho * h)
+
+        w, it, ok_in, msg = inner(fun, w, bounds, max_iter, tol)
+        iters += it
+        h, _ = problem.eq(w)
+        viol = float(np.max(np.abs(h)))
+        if viol <= eq_tol:
+            ok = ok_in
+            break
+        mu = mu + rho * h
+        if viol > 0.25 * last:
+            rho *= 10.0
+        last = viol
+        if max_seconds is not None and time.perf_counter() - t0 > max_seconds:
+            msg = "time limit"
+            break
+    return w, iters, ok, msg
+
+
+# ------------------------------------------------------------------------------------------------
+# Interactive session
+# ------------------------------------------------------------------------------------------------
+
+class RetimingSession:
+    """The current timing curve of an interactive edit, re-converged after every change.
+
+    Control points are the spline's (output time, source time) pairs (:meth:`control_points`);
+    index 0 and the last one are the ends (source 0 and S) and cannot move vertically."""
+
+    def __init__(self, problem: Problem, method="lbfgs", fps=None):
+        self.problem = problem
+        self.method = method
+        self.fps = fps
+        self.history: list[SolveInfo] = []
+
+    @property
+    def spline(self) -> TimingSpline:
+        return self.problem.spline
+
+    @property
+    def keytimes(self):
+        return list(self.problem.keytimes)
+
+    def control_points(self):
+        t, s = self.spline.control_points()
+        return [{"index": k, "output_time": float(t[k]), "source_time": float(s[k]),
+                 "locked": k in self.problem.locks, "movable": 0 < k < len(s) - 1} for k in range(len(s))]
+
+    def objective(self) -> float:
+        return self.problem.value(self.spline.w)
+
+    def move(self, index, source_time, lock=False):
+        """Put control point ``index`` at ``source_time`` (clamped between its neighbours)."""
+        c = self.spline.coefficients()
+        n = len(c)
+        if not (0 < index < n - 1):
+            raise RetimeError(f"control point {index} cannot move (0 and {n - 1} are the ends of the motion)")
+        gap = 1e-4 * self.spline.S
+        s = float(np.clip(source_time, c[index - 1] + gap, c[index + 1] - gap))
+        c = c.copy()
+        c[index] = s
+        self.spline.set_coefficients(c)
+        self.spline.w = np.clip(self.spline.w, self.problem.w_min, self.problem.w_max)
+        if index in self.problem.locks or lock:
+            self.problem.locks[index] = float(self.spline.coefficients()[index])
+        return s
+
+    def lock(self, index, locked=True):
+        c = self.spline.coefficients()
+        if not (0 <= index < len(c)):
+            raise RetimeError(f"no control point {index}")
+        if locked and 0 < index < len(c) - 1:
+            self.problem.locks[index] = float(c[index])
+        else:
+            self.problem.locks.pop(index, None)
+
+    def add(self, output_time):
+        """Add a control point at ``output_time`` (the curve does not change); returns its index."""
+        T = self.spline.duration
+        if not (0 < output_time < T):
+            raise RetimeError(f"output time {output_time:g} s is outside (0, {T:g}) s")
+        locks = self.problem.locks
+        old_c = self.spline.coefficients()
+        self.spline.insert_knot(output_time / T)
+        new_c = self.spline.coefficients()
+        # locked points keep their source times: re-find them among the new coefficients
+        self.problem.locks = {int(np.argmin(np.abs(new_c - old_c[k]))): v for k, v in locks.items()}
+        self._rebake_spline()
+        t, _ = self.spline.control_points()
+        return int(np.argmin(np.abs(t - output_time)))
+
+    def remove(self, index):
+        c = self.spline.coefficients()
+        n = len(c)
+        if not (0 < index < n - 1) or len(self.spline.interior) == 0:
+            raise RetimeError(f"control point {index} cannot be removed")
+        knot = int(np.clip(index - 2, 0, len(self.spline.interior) - 1))
+        self.spline.remove_knot(knot, w_min=self.problem.w_min)
+        self.problem.locks = {(k if k < index else k - 1): v for k, v in self.problem.locks.items() if k != index}
+        self._rebake_spline()
+
+    def add_keytime(self, source_time, output_time):
+        T = self.spline.fixed_T
+        self.problem.keytimes = check_keytimes(self.problem.keytimes + [(source_time, output_time)], self.spline.S, T)
+
+    def remove_keytime(self, i):
+        kt = list(self.problem.keytimes)
+        kt.pop(i)
+        self.problem.keytimes = kt
+
+    def _rebake_spline(self):
+        self.problem.spline.w = np.clip(self.problem.spline.w, self.problem.w_min, self.problem.w_max)
+
+    def reconverge(self, max_iter=300, tol=1e-9, max_seconds=None) -> SolveInfo:
+        w, info = solve(self.problem, self.spline.w, method=self.method, max_iter=max_iter, tol=tol,
+                        max_seconds=max_seconds)
+        self.spline.w = w
+        self.history.append(info)
+        return info
+
+    def curve(self, fps=None):
+        return self.spline.timing_curve(fps or self.fps or 120.0)

@@ -1,0 +1,847 @@
+"""Feasible timing regions (McCann et al. 2006, sec. 3.3).
+
+At every sample of the path, the torques are linear in the retiming (Eq. 6) and in the contact force
+coefficients lambda (Eq. 11)::
+
+    tau = a p'' + b p'^2 + c - N lam,   lam >= 0,   lo <= tau <= hi          (Eq. 13)
+
+with the root's six rows unactuated (lo = hi = 0). The **feasible region** of a frame is the projection
+of this polytope in (p'', p'^2, lam) onto the (u, v) = (p'', p'^2) plane: a convex polygon. It is
+computed here per frame:
+
+* **Rows that do not involve lam** (every row in flight, the arm and head rows in contact) are
+  half-planes of the (u, v) plane and are intersected exactly in 2-D (no LP). The projection of the
+  rest commutes with them, so they clip the LP's polygon afterwards.
+* **Rows with lam** define a small LP in (u, v, lam). It is solved by HiGHS (``highspy``), one
+  ``Highs`` model per frame that keeps its basis; only the cost direction changes. Two ways of
+  tracing the polygon:
+
+  - ``method="parametric"`` (default): one HiGHS solve gives an optimal basis for the direction
+    "maximize p'^2"; from it, a parametric (shadow-vertex) primal simplex rotates the cost direction
+    through 360 degrees, pivoting exactly at the angles where the basis stops being optimal. Every
+    pivot lands on the next vertex of the projection, so the polygon is exact (to floating point)
+    after one pivot per vertex. If the walk meets numerical trouble it falls back to ...
+  - ``method="highs"``: adaptive refinement with HiGHS alone (Fig. 4): maximize in the four axis
+    directions, then along the outward normal of every edge found so far; an edge is final when the
+    LP cannot push past it by more than ``tol``, so the polygon is exact to ``tol`` (it always lies
+    inside the true region).
+
+* The (u, v) box ``|p''| <= u_max``, ``0 <= p'^2 <= v_max`` bounds the search (a still frame accepts
+  any timing; the box stands for "anything reasonable").
+
+**Relaxation of empty regions.** Motion capture with an estimated body is never exactly physical: in
+flight the six root rows (linear and angular momentum) rarely have a common solution, and a foot may
+sit where it cannot support the body. When a frame's region is empty, a second LP finds the smallest
+residual that makes it feasible: slack variables on every row, costing 1 per newton of residual root
+force, 1 per newton-metre / ``moment_arm`` of residual root moment, and ``actuated_slack_cost`` times
+that for exceeding a torque limit, all divided by the body weight (mass x 9.81 m/s^2). The rows are
+then widened by their residual plus ``relax_pad`` (1% of the body weight by default, so the region has
+some extent), and the region is recomputed. A frame whose needed residual exceeds ``max_relaxation``
+(5% of body weight) is flagged ``implausible``; it still gets its (larger) region, so the optimizer
+never meets an empty one. The effective torque bounds of every frame are kept (``lo``, ``hi``) so
+that anything computed afterwards can be checked against them.
+
+Per frame the result also records ``source_distance``: how far the original timing (0, 1) lies
+outside the region in the (p'', p'^2) plane (0 when it is feasible).
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from ..errors import RetimeError
+
+STANDARD_G = 9.81
+_INF = 1e30
+
+
+@dataclass
+class RegionOptions:
+    """How feasible regions are computed. Units: u = p'' in 1/s, v = p'^2 (dimensionless)."""
+
+    u_max: float = 60.0
+    v_max: float = 25.0
+    method: str = "parametric"  # "parametric" (HiGHS + shadow-vertex walk) or "highs" (refinement)
+    tol: float = 1e-3  # "highs": polygon accuracy in the (p'', p'^2) plane
+    relax: bool = True
+    relax_pad: float = 0.01  # fraction of body weight added around the minimal residual
+    max_relaxation: float = 0.05  # frames needing more than this are flagged implausible
+    moment_arm: float = 1.0  # metres: a root moment of W * moment_arm counts like a force of W
+    actuated_slack_cost: float = 10.0
+    body_weight: float | None = None  # newtons; default: estimated from the gravity term
+    center: tuple = (0.0, 1.0)  # the timing whose contact forces anchor the force model (sec. 3.4)
+    workers: int | None = None  # processes for many frames (default: all cores, at most 2)
+
+
+@dataclass
+class RegionSet:
+    """Per-frame convex polygons in the (u, v) = (p'', p'^2) plane, with the contact model.
+
+    Polygon ``i`` has vertices ``verts[offsets[i]:offsets[i+1]]`` in counter-clockwise order and the
+    contact force coefficients ``lam`` (full width K, zero for unused columns) found at each of them.
+    ``center[i]`` is the fan centre of sec. 3.4 (the original timing (0, 1) when it is feasible, else
+    the nearest feasible point pulled slightly inwards) with ``center_lam[i]`` the least total contact
+    force there. ``lo``/``hi`` are the torque bounds actually used (widened on relaxed frames).
+    """
+
+    times: np.ndarray
+    offsets: np.ndarray
+    verts: np.ndarray
+    lam: np.ndarray
+    center: np.ndarray
+    center_lam: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    relaxation: np.ndarray  # fraction of body weight the frame needed (0 = exact)
+    relaxed: np.ndarray
+    implausible: np.ndarray
+    source_distance: np.ndarray
+    n_lp: np.ndarray  # LP solves per frame (HiGHS runs)
+    n_pivots: np.ndarray  # parametric pivots per frame
+    contact: np.ndarray
+    options: RegionOptions = field(default_factory=RegionOptions)
+    body_weight: float = 0.0
+    seconds: float = 0.0
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.offsets) - 1
+
+    def polygon(self, i: int) -> np.ndarray:
+        return self.verts[self.offsets[i]:self.offsets[i + 1]]
+
+    def polygon_lam(self, i: int) -> np.ndarray:
+        return self.lam[self.offsets[i]:self.offsets[i + 1]]
+
+    def contains(self, i: int, point, tol: float = 1e-9) -> bool:
+        return polygon_distance(self.polygon(i), point) <= tol
+
+    def distance(self, i: int, point) -> float:
+        return polygon_distance(self.polygon(i), point)
+
+
+# ------------------------------------------------------------------------------------------------
+# 2-D geometry
+# ------------------------------------------------------------------------------------------------
+
+def polygon_area(P) -> float:
+    P = np.asarray(P, dtype=float)
+    if len(P) < 3:
+        return 0.0
+    x, y = P[:, 0], P[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def closest_point(P, point):
+    """Closest point of the convex polygon P (CCW, possibly degenerate) to ``point``; (q, distance)."""
+    P = np.asarray(P, dtype=float)
+    p = np.asarray(point, dtype=float)
+    if len(P) == 0:
+        raise RetimeError("empty polygon")
+    if len(P) >= 3 and _inside(P, p):
+        return p.copy(), 0.0
+    best, bd = P[0].copy(), float(np.hypot(*(P[0] - p)))
+    for k in range(len(P)):
+        a, b = P[k], P[(k + 1) % len(P)]
+        e = b - a
+        ee = float(e @ e)
+        t = 0.0 if ee <= 0 else min(1.0, max(0.0, float((p - a) @ e) / ee))
+        q = a + t * e
+        d = float(np.hypot(*(q - p)))
+        if d < bd:
+            best, bd = q, d
+    return best, bd
+
+
+def polygon_distance(P, point) -> float:
+    return closest_point(P, point)[1]
+
+
+def _inside(P, p, tol=0.0):
+    e = np.roll(P, -1, axis=0) - P
+    w = p[None, :] - P
+    cross = e[:, 0] * w[:, 1] - e[:, 1] * w[:, 0]
+    scale = np.hypot(e[:, 0], e[:, 1])
+    return bool(np.all(cross >= -tol * np.maximum(scale, 1e-300)))
+
+
+@njit(cache=True)
+def _clip_halfplanes(px, py, plam, H, tol):
+    """Clip a convex polygon (CCW) by half-planes H[k] = (a, b, c): a u + b v <= c (rows normalized
+    so that hypot(a, b) = 1; rows with a = b = 0 are feasibility checks on c). Contact coefficients
+    of new vertices are interpolated along the clipped edge. Returns (px, py, plam, ok)."""
+    for k in range(H.shape[0]):
+        a, b, c = H[k, 0], H[k, 1], H[k, 2]
+        if a == 0.0 and b == 0.0:
+            if c < -tol:
+                return px[:0], py[:0], plam[:0], False
+            continue
+        n = px.shape[0]
+        if n == 0:
+            return px, py, plam, False
+        s = np.empty(n)
+        allin = True
+        allout = True
+        for i in range(n):
+            s[i] = a * px[i] + b * py[i] - c
+            if s[i] > tol:
+                allin = False
+            else:
+                allout = False
+        if allin:
+            continue
+        if allout:
+            return px[:0], py[:0], plam[:0], False
+        K = plam.shape[1]
+        qx = np.empty(2 * n)
+        qy = np.empty(2 * n)
+        ql = np.empty((2 * n, K))
+        m = 0
+        for i in range(n):
+            j = (i + 1) % n
+            si, sj = s[i], s[j]
+            if si <= tol:
+                qx[m] = px[i]
+                qy[m] = py[i]
+                ql[m] = plam[i]
+                m += 1
+            if (si <= tol) != (sj <= tol):
+                t = si / (si - sj)
+                qx[m] = px[i] + t * (px[j] - px[i])
+                qy[m] = py[i] + t * (py[j] - py[i])
+                ql[m] = plam[i] + t * (plam[j] - plam[i])
+                m += 1
+        px, py, plam = qx[:m].copy(), qy[:m].copy(), ql[:m].copy()
+    return px, py, plam, True
+
+
+def _dedupe(P, L, eps):
+    """Drop consecutive (cyclic) duplicate vertices and collinear middle points."""
+    if len(P) == 0:
+        return P, L
+    keep = []
+    for i in range(len(P)):
+        if not keep or np.hypot(*(P[i] - P[keep[-1]])) > eps:
+            keep.append(i)
+    while len(keep) > 1 and np.hypot(*(P[keep[-1]] - P[keep[0]])) <= eps:
+        keep.pop()
+    P, L = P[keep], L[keep]
+    if len(P) >= 3:
+        changed = True
+        while changed and len(P) >= 3:
+            changed = False
+            n = len(P)
+            for i in range(n):
+                a, b, c = P[i - 1], P[i], P[(i + 1) % n]
+                ab, ac = b - a, c - a
+                cr = ab[0] * ac[1] - ab[1] * ac[0]
+                if abs(cr) <= eps * max(np.hypot(*ac), 1e-300):
+                    P = np.delete(P, i, axis=0)
+                    L = np.delete(L, i, axis=0)
+                    changed = True
+                    break
+    return P, L
+
+
+# ------------------------------------------------------------------------------------------------
+# Parametric (shadow-vertex) primal simplex walk around the projection
+# ------------------------------------------------------------------------------------------------
+
+@njit(cache=True)
+def _walk(A, zl, zu, basic, atupper, theta0, max_iter):
+    """Trace the projection of {x : zl_x <= x <= zu_x, zl_s <= A x <= zu_s} onto (x0, x1).
+
+    Variables z = (x (n), s (m)) with A x - s = 0. ``basic`` (m,) lists the basic variables of a
+    basis optimal for the direction (cos theta0, sin theta0); nonbasic variables sit at their lower
+    bound unless ``atupper``. The cost direction is rotated counter-clockwise; at each angle where a
+    reduced cost changes sign the entering variable is pivoted in (bounded ratio test), which moves to
+    the next vertex. Returns (verts (k, 2), xs (k, n), status, pivots); status 0 = ok."""
+    m, n = A.shape
+    nt = n + m
+    M = np.zeros((m, nt))
+    M[:, :n] = A
+    for r in range(m):
+        M[r, n + r] = -1.0
+    isbasic = np.zeros(nt, dtype=np.bool_)
+    pos = -np.ones(nt, dtype=np.int64)
+    for r in range(m):
+        isbasic[basic[r]] = True
+        pos[basic[r]] = r
+    up = atupper.copy()
+    out_v = np.empty((4 * max_iter + 8, 2))
+    out_x = np.empty((4 * max_iter + 8, n))
+    nout = 0
+    scale = 0.0
+    for j in range(nt):
+        for r in range(m):
+            if abs(M[r, j]) > scale:
+                scale = abs(M[r, j])
+    B = np.empty((m, m))
+    for r in range(m):
+        B[:, r] = M[:, basic[r]]
+    Binv = np.linalg.inv(B)
+    z = np.zeros(nt)
+    rhs = np.zeros(m)
+    y1 = np.zeros(m)
+    y2 = np.zeros(m)
+    colj = np.zeros(m)
+    theta = theta0
+    end = theta0 + 2.0 * math.pi
+    status = 0
+    it = 0
+    since_refactor = 0
+    while True:
+        # primal values of the current basis
+        for j in range(nt):
+            if not isbasic[j]:
+                z[j] = zu[j] if up[j] else zl[j]
+        for r in range(m):
+            rhs[r] = 0.0
+        for j in range(n):
+            if not isbasic[j] and z[j] != 0.0:
+                for r in range(m):
+                    rhs[r] -= A[r, j] * z[j]
+        for r in range(m):
+            j = n + r
+            if not isbasic[j]:
+                rhs[r] += z[j]
+        zb = Binv @ rhs
+        for r in range(m):
+            z[basic[r]] = zb[r]
+        if nout == 0 or abs(z[0] - out_v[nout - 1, 0]) + abs(z[1] - out_v[nout - 1, 1]) > 1e-12 * (
+                1.0 + abs(z[0]) + abs(z[1])):
+            out_v[nout, 0] = z[0]
+            out_v[nout, 1] = z[1]
+            out_x[nout] = z[:n]
+            nout += 1
+        if it >= max_iter:
+            status = 1
+            break
+        it += 1
+        # reduced costs d_j(theta) = cos(theta) d1_j + sin(theta) d2_j for costs -x0 and -x1
+        for r in range(m):
+            y1[r] = -Binv[pos[0], r] if isbasic[0] else 0.0
+            y2[r] = -Binv[pos[1], r] if isbasic[1] else 0.0
+        best = 1e300
+        jin = -1
+        ct = math.cos(theta)
+        st = math.sin(theta)
+        for j in range(nt):
+            if isbasic[j] or zu[j] - zl[j] <= 0.0:
+                continue
+            if j < n:
+                dot1 = 0.0
+                dot2 = 0.0
+                for r in range(m):
+                    mr = A[r, j]
+                    if mr != 0.0:
+                        dot1 += y1[r] * mr
+                        dot2 += y2[r] * mr
+            else:
+                dot1 = -y1[j - n]
+                dot2 = -y2[j - n]
+            d1 = (-1.0 if j == 0 else 0.0) - dot1
+            d2 = (-1.0 if j == 1 else 0.0) - dot2
+            sg = -1.0 if up[j] else 1.0
+            Ag = sg * (d1 * ct + d2 * st)
+            Bg = sg * (-d1 * st + d2 * ct)
+            R = math.hypot(Ag, Bg)
+            if R <= 1e-12:
+                continue
+            if Ag <= 1e-10 * R and Bg < 0.0:
+                delta = 0.0
+            else:
+                delta = math.atan2(Bg, Ag) + 0.5 * math.pi
+                if delta < 0.0:
+                    delta += 2.0 * math.pi
+                elif delta >= 2.0 * math.pi:
+                    delta -= 2.0 * math.pi
+            if delta < best - 1e-13:
+                best = delta
+                jin = j
+        if jin < 0 or theta + best >= end:
+            break
+        theta += best
+        # ratio test: move the entering variable away from its bound
+        dirn = -1.0 if up[jin] else 1.0
+        if jin < n:
+            for r in range(m):
+                colj[r] = A[r, jin]
+        else:
+            for r in range(m):
+                colj[r] = 0.0
+            colj[jin - n] = -1.0
+        col = Binv @ colj
+        tmax = zu[jin] - zl[jin]
+        leave = -1
+        leave_up = False
+        bestpiv = 0.0
+        for r in range(m):
+            al = -dirn * col[r]  # dz_B / dt
+            if abs(al) <= 1e-11:
+                continue
+            j = basic[r]
+            if al > 0.0:
+                if zu[j] >= _INF * 0.5:
+                    continue
+                t = (zu[j] - z[j]) / al
+                tu = True
+            else:
+                if zl[j] <= -_INF * 0.5:
+                    continue
+                t = (zl[j] - z[j]) / al
+                tu = False
+            if t < 0.0:
+                t = 0.0
+            if t < tmax - 1e-12 * (1.0 + tmax) or (abs(t - tmax) <= 1e-12 * (1.0 + tmax) and abs(al) > bestpiv):
+                tmax = t
+                leave = r
+                leave_up = tu
+                bestpiv = abs(al)
+        if tmax >= _INF * 0.5:
+            status = 2  # unbounded ray: cannot happen for a bounded projection
+            break
+        if leave < 0:
+            up[jin] = not up[jin]  # bound flip
+            continue
+        jout = basic[leave]
+        basic[leave] = jin
+        isbasic[jin] = True
+        isbasic[jout] = False
+        pos[jin] = leave
+        pos[jout] = -1
+        up[jout] = leave_up
+        piv = col[leave]
+        if abs(piv) < 1e-9 * scale or since_refactor >= 25:
+            for r in range(m):
+                B[:, r] = M[:, basic[r]]
+            if abs(np.linalg.det(B)) == 0.0:
+                status = 3
+                break
+            Binv = np.linalg.inv(B)
+            since_refactor = 0
+        else:
+            rowp = Binv[leave, :] / piv
+            for r in range(m):
+                if r != leave:
+                    f = col[r]
+                    if f != 0.0:
+                        Binv[r, :] -= f * rowp
+            Binv[leave, :] = rowp
+            since_refactor += 1
+    return out_v[:nout].copy(), out_x[:nout].copy(), status, it
+
+
+# ------------------------------------------------------------------------------------------------
+# HiGHS models
+# ------------------------------------------------------------------------------------------------
+
+def _new_highs():
+    from highspy import _core
+
+    h = _core._Highs()  # the raw binding: no Python callbacks on every iteration
+    h.setOptionValue("output_flag", False)
+    h.setOptionValue("presolve", "off")
+    h.setOptionValue("solver", "simplex")
+    h.setOptionValue("threads", 1)
+    h.setOptionValue("simplex_strategy", 4)  # primal: the basis stays feasible when the cost turns
+    return h
+
+
+def _highs_lp(A, col_lo, col_hi, row_lo, row_hi, cost=None):
+    import highspy
+    from scipy.sparse import csc_matrix
+
+    m, n = A.shape
+    lp = highspy.HighsLp()
+    lp.num_col_ = n
+    lp.num_row_ = m
+    lp.col_cost_ = np.zeros(n) if cost is None else np.asarray(cost, dtype=float)
+    lp.col_lower_ = np.where(col_lo <= -_INF * 0.5, -highspy.kHighsInf, col_lo)
+    lp.col_upper_ = np.where(col_hi >= _INF * 0.5, highspy.kHighsInf, col_hi)
+    lp.row_lower_ = np.where(row_lo <= -_INF * 0.5, -highspy.kHighsInf, row_lo)
+    lp.row_upper_ = np.where(row_hi >= _INF * 0.5, highspy.kHighsInf, row_hi)
+    Ac = csc_matrix(A)
+    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+    lp.a_matrix_.start_ = Ac.indptr.astype(np.int32)
+    lp.a_matrix_.index_ = Ac.indices.astype(np.int32)
+    lp.a_matrix_.value_ = Ac.data
+    lp.a_matrix_.num_col_ = n
+    lp.a_matrix_.num_row_ = m
+    return lp
+
+
+class FrameLP:
+    """One frame's LP in (u, v, lam_active): a HiGHS model kept for the frame; only costs (and, for
+    the centre point, the (u, v) bounds) change between solves."""
+
+    def __init__(self, A, row_lo, row_hi, u_max, v_max):
+        import highspy
+
+        self.A = np.ascontiguousarray(A, dtype=float)
+        m, n = A.shape
+        self.m, self.n = m, n
+        self.col_lo = np.r_[-u_max, 0.0, np.zeros(n - 2)]
+        self.col_hi = np.r_[u_max, v_max, np.full(n - 2, _INF)]
+        self.row_lo = np.asarray(row_lo, dtype=float)
+        self.row_hi = np.asarray(row_hi, dtype=float)
+        self.h = _new_highs()
+        self.h.passModel(_highs_lp(self.A, self.col_lo, self.col_hi, self.row_lo, self.row_hi))
+        self.n_solves = 0
+        self._idx2 = np.array([0, 1], dtype=np.int32)
+        self._kOptimal = highspy.HighsModelStatus.kOptimal
+
+    def maximize(self, du, dv):
+        """Maximize du*u + dv*v; returns x (n,) or None if infeasible."""
+        self.h.changeColsCost(2, self._idx2, np.array([-du, -dv]))
+        self.h.run()
+        self.n_solves += 1
+        if self.h.getModelStatus() != self._kOptimal:
+            return None
+        return np.asarray(self.h.getSolution().col_value)
+
+    def basis(self):
+        """The optimal basis as (basic indices over (cols, rows), at-upper flags)."""
+        import highspy
+
+        b = self.h.getBasis()
+        cs = [int(s) for s in b.col_status]
+        rs = [int(s) for s in b.row_status]
+        BASIC, UPPER = int(highspy.HighsBasisStatus.kBasic), int(highspy.HighsBasisStatus.kUpper)
+        st = cs + rs
+        basic = np.array([j for j, s in enumerate(st) if s == BASIC], dtype=np.int64)
+        up = np.array([s == UPPER for s in st], dtype=np.bool_)
+        return basic, up
+
+    def solve_at(self, u, v, cost_lam):
+        """Fix (u, v) and minimize cost_lam . lam; returns lam or None."""
+        h = self.h
+        n = self.n
+        h.changeColsBounds(2, self._idx2, np.array([u, v]), np.array([u, v]))
+        h.changeColsCost(n, np.arange(n, dtype=np.int32), np.r_[0.0, 0.0, cost_lam])
+        h.run()
+        self.n_solves += 1
+        ok = h.getModelStatus() == self._kOptimal
+        x = np.asarray(h.getSolution().col_value) if ok else None
+        h.changeColsBounds(2, self._idx2, self.col_lo[:2], self.col_hi[:2])
+        h.changeColsCost(n, np.arange(n, dtype=np.int32), np.zeros(n))
+        return None if x is None else x[2:]
+
+
+def _trace_highs(lp: FrameLP, tol, first=None):
+    """Adaptive refinement (Fig. 4): axis directions, then edge normals until every edge holds to tol."""
+    pts = []  # list of (angle, x)
+    dirs = [0.5 * math.pi, 0.0, math.pi, 1.5 * math.pi]
+    for k, th in enumerate(dirs):
+        x = first if (k == 0 and first is not None) else lp.maximize(math.cos(th), math.sin(th))
+        if x is None:
+            return None
+        pts.append((th, x))
+    pts.sort(key=lambda p: p[0])
+    # refine edges between consecutive support points
+    stack = [(pts[i], pts[(i + 1) % len(pts)]) for i in range(len(pts))]
+    done = []
+    guard = 0
+    while stack:
+        guard += 1
+        (ta, xa), (tb, xb) = stack.pop()
+        pa, pb = xa[:2], xb[:2]
+        e = pb - pa
+        if np.hypot(*e) <= tol:
+            done.append((ta, xa))
+            continue
+        nrm = np.array([e[1], -e[0]]) / np.hypot(*e)  # outward for CCW order
+        x = lp.maximize(nrm[0], nrm[1])
+        if x is None or guard > 400:
+            done.append((ta, xa))
+            continue
+        if float(nrm @ (x[:2] - pa)) > tol:
+            tm = math.atan2(nrm[1], nrm[0]) % (2 * math.pi)
+            stack.append(((tm, x), (tb, xb)))
+            stack.append(((ta, xa), (tm, x)))
+        else:
+            done.append((ta, xa))
+    X = np.array([x for _, x in done])
+    order = _ccw_order(X[:, :2])
+    return X[order]
+
+
+def _ccw_order(P):
+    c = P.mean(axis=0)
+    ang = np.arctan2(P[:, 1] - c[1], P[:, 0] - c[0])
+    return np.argsort(ang, kind="stable")
+
+
+# ------------------------------------------------------------------------------------------------
+# One frame
+# ------------------------------------------------------------------------------------------------
+
+@dataclass
+class _FrameResult:
+    verts: np.ndarray
+    lam: np.ndarray
+    center: np.ndarray
+    center_lam: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    relaxation: float
+    relaxed: bool
+    source_distance: float
+    n_lp: int
+    n_pivots: int
+
+
+def _row_weights(n_root, nv, body_weight, opts):
+    w = np.full(nv, body_weight * opts.moment_arm)
+    w[: min(3, n_root)] = body_weight
+    return w
+
+
+def _box_polygon(opts, K):
+    U, V = opts.u_max, opts.v_max
+    P = np.array([[-U, 0.0], [U, 0.0], [U, V], [-U, V]])
+    return P, np.zeros((4, K))
+
+
+def _halfplanes(a2, b2, lo2, hi2):
+    """Rows lo <= a u + b v <= hi as normalized half-planes (a, b, c): a u + b v <= c."""
+    rows = []
+    nrm = np.hypot(a2, b2)
+    scale = np.maximum(nrm, 1e-300)
+    big = nrm > 1e-12 * (1.0 + np.abs(lo2) + np.abs(hi2))
+    for k in range(len(a2)):
+        if big[k]:
+            if hi2[k] < _INF * 0.5:
+                rows.append((a2[k] / scale[k], b2[k] / scale[k], hi2[k] / scale[k]))
+            if lo2[k] > -_INF * 0.5:
+                rows.append((-a2[k] / scale[k], -b2[k] / scale[k], -lo2[k] / scale[k]))
+        else:  # a row the timing cannot change: lo <= 0 <= hi or infeasible
+            rows.append((0.0, 0.0, min(hi2[k], -lo2[k]) if np.isfinite(hi2[k] + lo2[k]) else 0.0))
+    return np.array(rows, dtype=float).reshape(-1, 3)
+
+
+def _relax_bounds(a, b, c, N, lo, hi, act, n_root, body_weight, opts):
+    """Least weighted-L1 residual that makes the frame feasible; returns widened (lo, hi), level."""
+    nv = len(a)
+    w = _row_weights(n_root, nv, body_weight, opts)
+    cost_row = 1.0 / w
+    cost_row[n_root:] *= opts.actuated_slack_cost
+    Na = N[:, act]
+    K = Na.shape[1]
+    # columns: u, v, lam (K), s+ (nv), s- (nv)
+    A = np.hstack([a[:, None], b[:, None], -Na, np.eye(nv), -np.eye(nv)])
+    col_lo = np.r_[-opts.u_max, 0.0, np.zeros(K + 2 * nv)]
+    col_hi = np.r_[opts.u_max, opts.v_max, np.full(K + 2 * nv, _INF)]
+    cost = np.r_[0.0, 0.0, np.zeros(K), cost_row, cost_row]
+    h = _new_highs()
+    h.setOptionValue("simplex_strategy", 1)
+    h.passModel(_highs_lp(A, col_lo, col_hi, lo - c, hi - c, cost))
+    h.run()
+    import highspy
+
+    if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:  # cannot happen: slacks are free
+        raise RetimeError("relaxation LP failed")
+    x = np.asarray(h.getSolution().col_value)
+    rho = x[2 + K: 2 + K + nv] - x[2 + K + nv:]
+    widen = np.abs(rho)
+    widen[np.abs(rho) <= 1e-9 * w] = 0.0
+    pad = opts.relax_pad * w
+    grow = widen + np.where((widen > 0) | (np.arange(nv) < n_root), pad, 0.0)
+    lo2, hi2 = lo - grow, hi + grow
+    level = float(np.max(grow / w))
+    return lo2, hi2, level
+
+
+def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_root: int,
+                 relaxed_bounds=None) -> _FrameResult:
+    """The feasible polygon of one frame (see the module docstring)."""
+    from .forces import solve_center
+
+    nv, Kall = N.shape
+    act = np.flatnonzero(np.any(N != 0.0, axis=0))
+    n_lp = 0
+    n_piv = 0
+    relaxed = relaxed_bounds is not None
+    level = 0.0
+    if relaxed:
+        lo, hi, level = relaxed_bounds
+    lp_rows = np.flatnonzero(np.any(N[:, act] != 0.0, axis=1)) if len(act) else np.zeros(0, dtype=int)
+    other = np.setdiff1d(np.arange(nv), lp_rows)
+    H = _halfplanes(a[other], b[other], lo[other] - c[other], hi[other] - c[other])
+    eps = 1e-9 * (opts.u_max + opts.v_max)
+    P = L = None
+    lp = None
+    if len(act) == 0:
+        P, L = _box_polygon(opts, Kall)
+    else:
+        A = np.hstack([a[lp_rows, None], b[lp_rows, None], -N[np.ix_(lp_rows, act)]])
+        lp = FrameLP(A, lo[lp_rows] - c[lp_rows], hi[lp_rows] - c[lp_rows], opts.u_max, opts.v_max)
+        x0 = lp.maximize(0.0, 1.0)
+        if x0 is not None:
+            X = None
+            if opts.method == "parametric":
+                basic, up = lp.basis()
+                zl = np.r_[lp.col_lo, lp.row_lo]
+                zu = np.r_[lp.col_hi, lp.row_hi]
+                if len(basic) == lp.m:
+                    V, Xw, status, piv = _walk(lp.A, zl, zu, basic, up, 0.5 * math.pi, 400)
+                    n_piv += piv
+                    if status == 0 and len(Xw) >= 1:
+                        X = Xw
+            if X is None:
+                X = _trace_highs(lp, opts.tol, first=x0)
+            if X is not None:
+                P = X[:, :2].copy()
+                L = np.zeros((len(X), Kall))
+                L[:, act] = np.maximum(X[:, 2:], 0.0)
+        n_lp += lp.n_solves
+    ok = P is not None
+    if ok:
+        px, py, pl, ok = _clip_halfplanes(P[:, 0].copy(), P[:, 1].copy(), L, H, eps)
+        if ok:
+            P = np.column_stack([px, py])
+            L = pl
+            P, L = _dedupe(P, L, eps)
+            ok = len(P) >= 1
+    if not ok:
+        if relaxed or not opts.relax:
+            if not opts.relax:
+                raise RetimeError("empty feasible region (relaxation is off)")
+            raise RetimeError("feasible region still empty after relaxation")
+        n_root = int(n_root)
+        lo2, hi2, lvl = _relax_bounds(a, b, c, N, lo, hi, act, n_root, body_weight, opts)
+        res = frame_region(a, b, c, N, lo, hi, opts, body_weight, n_root, relaxed_bounds=(lo2, hi2, lvl))
+        res.n_lp += n_lp + 1
+        return res
+    # fan centre (sec. 3.4)
+    target = np.asarray(opts.center, dtype=float)
+    q, dist = closest_point(P, target)
+    center = q
+    if dist > 0 and len(P) >= 3:
+        centroid = P.mean(axis=0)
+        center = q + 0.02 * (centroid - q)
+    clam = np.zeros(Kall)
+    if lp is not None:
+        from .forces import force_weights
+
+        lam_c = solve_center(lp, center[0], center[1], force_weights(N[:, act], n_root))
+        if lam_c is None:  # only on the clipped edge of numerical noise: use the nearest vertex blend
+            lam_c = _interp_on_polygon(P, L, center)[act]
+        clam[act] = lam_c
+        n_lp += 1
+    return _FrameResult(P, L, center, clam, lo, hi, level, relaxed, dist, n_lp, n_piv)
+
+
+def _interp_on_polygon(P, L, point):
+    """Contact coefficients at a point of the polygon by mean-value weights of the nearest edge."""
+    d = np.hypot(P[:, 0] - point[0], P[:, 1] - point[1])
+    k = int(np.argmin(d))
+    return L[k]
+
+
+# ------------------------------------------------------------------------------------------------
+# All frames
+# ------------------------------------------------------------------------------------------------
+
+def unactuated_rows(pd) -> int:
+    lo, hi = np.asarray(pd.tau_lo), np.asarray(pd.tau_hi)
+    free = (lo == 0) & (hi == 0)
+    n = 0
+    while n < len(free) and free[n]:
+        n += 1
+    return n
+
+
+def estimate_body_weight(pd) -> float:
+    """Body weight at standard gravity from the root's gravity force (|c_root force| = m |g|)."""
+    n_root = unactuated_rows(pd)
+    if n_root >= 3:
+        f = np.linalg.norm(np.asarray(pd.c)[:, :3], axis=1)
+        w = float(np.median(f))
+        if w > 0:
+            return w
+    return float(np.median(np.linalg.norm(np.asarray(pd.c), axis=1))) or 1.0
+
+
+_SHARED = {}
+
+
+def _work(frames):
+    pd, opts, bw, n_root = _SHARED["args"]
+    return [_one(pd, i, opts, bw, n_root) for i in frames]
+
+
+def _one(pd, i, opts, bw, n_root):
+    lo = np.asarray(pd.tau_lo, dtype=float).copy()
+    hi = np.asarray(pd.tau_hi, dtype=float).copy()
+    return frame_region(np.asarray(pd.a[i], float), np.asarray(pd.b[i], float), np.asarray(pd.c[i], float),
+                        np.asarray(pd.N[i], float), lo, hi, opts, bw, n_root)
+
+
+def compute_regions(pd, options: RegionOptions | None = None, frames=None, progress=False) -> RegionSet:
+    """Feasible regions and the contact-force model (centre LP) of every sample of ``pd``."""
+    import time
+
+    opts = options or RegionOptions()
+    if opts.method not in ("parametric", "highs"):
+        raise RetimeError(f"unknown region method {opts.method!r} (use 'parametric' or 'highs')")
+    t0 = time.perf_counter()
+    n = len(pd.times) if frames is None else len(frames)
+    idx = np.arange(len(pd.times)) if frames is None else np.asarray(frames)
+    bw = float(opts.body_weight) if opts.body_weight else estimate_body_weight(pd)
+    n_root = unactuated_rows(pd)
+    workers = opts.workers
+    if workers is None:
+        workers = min(2, os.cpu_count() or 1) if n >= 200 else 1
+    results = None
+    if workers > 1 and n >= 2 * workers:
+        import multiprocessing as mp
+
+        try:
+            ctx = mp.get_context("fork")
+        except ValueError:
+            ctx = None
+        if ctx is not None:
+            _SHARED["args"] = (pd, opts, bw, n_root)
+            chunks = [list(c) for c in np.array_split(idx, 4 * workers) if len(c)]
+            try:
+                with ctx.Pool(workers) as pool:
+                    parts = pool.map(_work, chunks)
+                results = [r for part in parts for r in part]
+            finally:
+                _SHARED.clear()
+    if results is None:
+        it = idx
+        if progress:
+            from tqdm import tqdm
+
+            it = tqdm(idx, desc="feasible regions", unit="frame", disable=None)
+        results = [_one(pd, int(i), opts, bw, n_root) for i in it]
+    K = np.asarray(pd.N).shape[2]
+    offsets = np.zeros(n + 1, dtype=np.int64)
+    offsets[1:] = np.cumsum([len(r.verts) for r in results])
+    rs = RegionSet(
+        times=np.asarray(pd.times, dtype=float)[idx],
+        offsets=offsets,
+        verts=np.concatenate([r.verts for r in results]).reshape(-1, 2),
+        lam=np.concatenate([r.lam for r in results]).reshape(-1, K),
+        center=np.array([r.center for r in results]),
+        center_lam=np.array([r.center_lam for r in results]).reshape(n, K),
+        lo=np.array([r.lo for r in results]),
+        hi=np.array([r.hi for r in results]),
+        relaxation=np.array([r.relaxation for r in results]),
+        relaxed=np.array([r.relaxed for r in results], dtype=bool),
+        implausible=np.array([r.relaxation > opts.max_relaxation for r in results], dtype=bool),
+        source_distance=np.array([r.source_distance for r in results]),
+        n_lp=np.array([r.n_lp for r in results], dtype=np.int64),
+        n_pivots=np.array([r.n_pivots for r in results], dtype=np.int64),
+        contact=np.asarray(pd.contact)[idx] if getattr(pd, "contact", None) is not None else np.zeros((n, 0), bool),
+        options=opts,
+        body_weight=bw,
+    )
+    rs.seconds = time.perf_counter() - t0
+    return rs

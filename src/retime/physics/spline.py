@@ -1,0 +1,228 @@
+"""The retiming curve p(t): a monotone cubic B-spline from output time to source time (sec. 3, 3.6).
+
+    p(t) = sum_k c_k N_k(t / T),   t in [0, T],   clamped cubic B-spline on knots in [0, 1]
+
+Monotonicity is built into the parameters: the optimizer works on ``w``, the control coefficients
+of the derivative, a quadratic B-spline ``p'(t) = kappa * sum_k w_k M_k(t / T)``. Since B-spline
+basis functions are non-negative and sum to one, ``w_k >= w_min > 0`` makes the curve strictly
+increasing, with ``p' >= kappa * w_min`` everywhere. The coefficients follow by integration::
+
+    c_0 = 0,   c_k = S * W_k / W,   W_k = sum_{i<k} w_i d_i,   W = W_{n-1},   d_i = (xi_{i+4} - xi_{i+1}) / 3
+
+so ``p(T) = S`` (the whole source plays) for every ``w``. With a **fixed duration** T the scale of
+``w`` is free (kappa = 3 S / (T W)); with a **free duration** ``T = S / W`` (kappa = 1), so the
+optimizer chooses the duration through the same bound-constrained variables.
+
+The *control points* shown to a user are the B-spline's (Greville abscissa, coefficient) pairs:
+``(T (xi_{k+1} + xi_{k+2} + xi_{k+3}) / 3, c_k)``. Adding one inserts a knot (Boehm's algorithm, the
+curve is unchanged); removing one drops a knot and refits by least squares.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.interpolate import BSpline
+
+from ..errors import RetimeError
+
+
+class TimingSpline:
+    """Knots (interior, normalized to (0, 1)), derivative coefficients ``w``, source duration ``S``
+    and either a fixed duration ``T`` or ``T=None`` (free)."""
+
+    def __init__(self, interior_knots, w, source_duration, duration=None):
+        k = np.asarray(interior_knots, dtype=float).ravel()
+        if np.any(np.diff(k) <= 0) or (len(k) and (k[0] <= 0 or k[-1] >= 1)):
+            raise RetimeError("spline knots must increase strictly inside (0, 1)")
+        self.interior = k
+        self.S = float(source_duration)
+        self.fixed_T = None if duration is None else float(duration)
+        w = np.asarray(w, dtype=float).ravel()
+        if len(w) != len(k) + 3:
+            raise RetimeError(f"a spline with {len(k)} interior knots needs {len(k) + 3} derivative coefficients")
+        self.w = w
+        self._prepare()
+
+    # -- construction --------------------------------------------------------------------------
+    @classmethod
+    def uniform(cls, source_duration, n_spans, duration=None):
+        """Uniform knots, constant speed S / T (the original timing when T == S)."""
+        n_spans = max(1, int(n_spans))
+        interior = np.arange(1, n_spans) / n_spans
+        T = source_duration if duration is None else duration
+        w = np.full(n_spans + 2, source_duration / T)
+        return cls(interior, w, source_duration, duration)
+
+    @classmethod
+    def fit(cls, interior_knots, source_duration, duration, func_t, dfunc_t=None, w_min=1e-3):
+        """Least-squares fit of p' to a given speed profile (t -> ds/dt), then exact end conditions."""
+        k = np.asarray(interior_knots, dtype=float)
+        xi1 = np.r_[0, 0, 0, k, 1, 1, 1]  # quadratic knots of p'
+        tau = np.linspace(0, 1, 20 * (len(k) + 3))
+        D = BSpline.design_matrix(tau, xi1, 2).toarray()
+        y = np.asarray(dfunc_t(tau * duration), dtype=float)
+        w, *_ = np.linalg.lstsq(D, y, rcond=None)
+        w = np.maximum(w, w_min)
+        return cls(k, w, source_duration, None if duration is None else duration)
+
+    def copy(self):
+        out = TimingSpline(self.interior.copy(), self.w.copy(), self.S, self.fixed_T)
+        return out
+
+    def _prepare(self):
+        k = self.interior
+        self.xi = np.r_[0.0, 0.0, 0.0, 0.0, k, 1.0, 1.0, 1.0, 1.0]
+        self.n_c = len(k) + 4
+        self.d = (self.xi[4:4 + self.n_c - 1] - self.xi[1:1 + self.n_c - 1]) / 3.0
+        self.breaks = np.r_[0.0, k, 1.0]
+        self.span_matrices = _span_matrices(self.xi, self.breaks)
+
+    # -- parameters -> curve -------------------------------------------------------------------
+    @property
+    def free(self) -> bool:
+        return self.fixed_T is None
+
+    def coefficients(self, w=None):
+        w = self.w if w is None else w
+        W = np.r_[0.0, np.cumsum(w * self.d)]
+        return self.S * W / W[-1]
+
+    def duration_of(self, w=None) -> float:
+        w = self.w if w is None else w
+        if self.fixed_T is not None:
+            return self.fixed_T
+        return self.S / float(np.dot(w, self.d))
+
+    @property
+    def duration(self) -> float:
+        return self.duration_of()
+
+    def chain(self, gc, gT, w=None):
+        """Gradient with respect to ``w`` from gradients with respect to c and T."""
+        w = self.w if w is None else w
+        wd = w * self.d
+        W = float(wd.sum())
+        c = self.coefficients(w)
+        suffix = np.cumsum(gc[::-1])[::-1]  # suffix[k] = sum_{j>=k} gc_j
+        after = suffix[1:]  # sum_{k>i} gc_k for i = 0..n_c-2
+        g = (self.S * self.d / W) * (after - float(np.dot(gc, c)) / self.S)
+        if self.fixed_T is None:
+            T = self.S / W
+            g = g - gT * T * self.d / W
+        return g
+
+    # -- evaluation ----------------------------------------------------------------------------
+    def _bspline(self, w=None):
+        return BSpline(self.xi, self.coefficients(w), 3, extrapolate=False)
+
+    def __call__(self, t, w=None):
+        T = self.duration_of(w)
+        tau = np.clip(np.asarray(t, dtype=float) / T, 0.0, 1.0)
+        return np.clip(self._bspline(w)(tau), 0.0, self.S)
+
+    def speed(self, t, w=None):
+        T = self.duration_of(w)
+        tau = np.clip(np.asarray(t, dtype=float) / T, 0.0, 1.0)
+        return self._bspline(w).derivative(1)(tau) / T
+
+    def accel(self, t, w=None):
+        T = self.duration_of(w)
+        tau = np.clip(np.asarray(t, dtype=float) / T, 0.0, 1.0)
+        return self._bspline(w).derivative(2)(tau) / T ** 2
+
+    def inverse(self, s, w=None):
+        """Output times at which the source times ``s`` play (Newton on the monotone curve)."""
+        s = np.clip(np.asarray(s, dtype=float), 0.0, self.S)
+        T = self.duration_of(w)
+        tt = np.linspace(0, T, 64 * (len(self.interior) + 1) + 1)
+        ss = self(tt, w)
+        t = np.interp(s, ss, tt)
+        for _ in range(6):
+            v = self.speed(t, w)
+            t = np.clip(t - (self(t, w) - s) / np.maximum(v, 1e-12), 0.0, T)
+        return t
+
+    def control_points(self, w=None):
+        """(output times (Greville abscissae), source times (coefficients))."""
+        T = self.duration_of(w)
+        g = (self.xi[1:1 + self.n_c] + self.xi[2:2 + self.n_c] + self.xi[3:3 + self.n_c]) / 3.0
+        return g * T, self.coefficients(w)
+
+    def timing_curve(self, fps, per_frame=4):
+        """A :class:`retime.warp.TimingCurve` sampling the spline densely (monotone cubic between)."""
+        from ..warp import TimingCurve
+
+        T = self.duration
+        n = max(8, int(np.ceil(T * fps * per_frame)) + 1)
+        t = np.linspace(0.0, T, n)
+        t = np.union1d(t, self.breaks * T)
+        s = self(t)
+        s[0], s[-1] = 0.0, self.S
+        s = np.maximum.accumulate(s)
+        return TimingCurve(t, s, kind="pchip")
+
+    # -- editing -------------------------------------------------------------------------------
+    def set_coefficients(self, c):
+        """Set w from coefficients c (c_0 = 0, c_last = S, increasing), keeping the duration."""
+        c = np.asarray(c, dtype=float)
+        inc = np.diff(c)
+        if np.any(inc <= 0):
+            raise RetimeError("control points must increase in source time")
+        T = self.duration
+        self.w = inc / (self.d * T)
+
+    def insert_knot(self, tau):
+        """Boehm knot insertion at normalized time ``tau``: one more control point, same curve."""
+        tau = float(tau)
+        if not (0 < tau < 1) or np.any(np.abs(self.interior - tau) < 1e-9):
+            raise RetimeError(f"cannot add a control point at normalized time {tau:.6f}")
+        T = self.duration
+        c = self.coefficients()
+        xi = self.xi
+        p = 3
+        kspan = int(np.searchsorted(xi, tau, side="right") - 1)
+        newc = np.empty(len(c) + 1)
+        for i in range(len(newc)):
+            if i <= kspan - p:
+                newc[i] = c[i]
+            elif i >= kspan + 1:
+                newc[i] = c[i - 1]
+            else:
+                a = (tau - xi[i]) / (xi[i + p] - xi[i])
+                newc[i] = (1 - a) * c[i - 1] + a * c[i]
+        self.interior = np.sort(np.r_[self.interior, tau])
+        self._prepare()
+        self.w = np.diff(newc) / (self.d * T)
+        return int(np.searchsorted(self.interior, tau)) + 1
+
+    def remove_knot(self, index, w_min=1e-3):
+        """Drop interior knot ``index`` and refit the curve's speed by least squares."""
+        if not (0 <= index < len(self.interior)):
+            raise RetimeError(f"no interior knot {index}")
+        T = self.duration
+        old = self.copy()
+        self.interior = np.delete(self.interior, index)
+        self._prepare()
+        xi1 = self.xi[1:-1]
+        tau = np.linspace(0, 1, 40 * (len(self.interior) + 3))
+        D = BSpline.design_matrix(tau, xi1, 2).toarray()
+        y = old.speed(tau * T)
+        w, *_ = np.linalg.lstsq(D, y, rcond=None)
+        self.w = np.maximum(w, w_min)
+
+
+def _span_matrices(xi, breaks):
+    """Per span m: 4x4 matrix G with row r = coefficient of x^r (x = tau - breaks[m]) of the cubic
+    basis functions N_{m+l}, l = 0..3 (columns)."""
+    n_span = len(breaks) - 1
+    n_c = len(xi) - 4
+    out = np.zeros((n_span, 4, 4))
+    for m in range(n_span):
+        a, b = breaks[m], breaks[m + 1]
+        h = b - a
+        ys = np.array([0.1, 0.4, 0.6, 0.9])
+        D = BSpline.design_matrix(a + h * ys, xi, 3).toarray()[:, m:m + 4]
+        V = np.vander(ys, 4, increasing=True)  # in y = x / h: well conditioned
+        out[m] = np.linalg.solve(V, D) / (h ** np.arange(4))[:, None]
+        if m + 4 > n_c:
+            raise RetimeError("internal: spline span outside coefficients")
+    return out
