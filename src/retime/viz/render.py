@@ -235,9 +235,7 @@ class Panel:
     ground: float
     sampled: dict
     background: Image.Image
-    timeline: Image.Image
-    grid_bands: list
-    grid_colors: list
+    grid: list
     side: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     head: tuple[int, int | None] | None = None
 
@@ -342,7 +340,12 @@ class Renderer:
         fade = [1.0, 0.75, 0.5, 0.3, 0.14]
         grid_colors = [tuple(int(round(f * g + (1 - f) * b)) for g, b in zip(GRID_COLOR, FLOOR_FAR)) for f in fade]
         background = self._background(cam, ground, W, view_h, H)
-        timeline = self._timeline(track, color, W) if self.show_timeline else None
+        if self.show_timeline:
+            timeline = self._timeline(track, color, W)
+            background.paste(timeline, (0, H - timeline.height))
+            self._timeline_top = H - timeline.height
+        if track.label:
+            ImageDraw.Draw(background).text((14 * S, 12 * S), track.label, font=self._font_label, fill=color)
         head = _find_joint(track.names, r"^head$")
         if head is None:
             head = _find_joint(track.names, r"head")
@@ -360,25 +363,19 @@ class Renderer:
             ground=ground,
             sampled=sampled,
             background=background,
-            timeline=timeline,
-            grid_bands=grid_bands,
-            grid_colors=grid_colors,
+            grid=self._grid(cam, ground, grid_bands, grid_colors),
             side=_sides(track.names, track.parents),
             head=head,
         )
 
     def _background(self, cam: _Camera, ground: float, W: int, view_h: int, H: int) -> Image.Image:
         """Sky gradient above the horizon and a floor that fades into it (static per panel)."""
-        # horizon row: direction with zero elevation
-        fy = cam.forward[1]
-        uy = cam.up[1]
-        # a point far along the horizontal forward direction projects to cy - f * (up.y*... )
+        # horizon row: where a point far away along the horizontal forward direction projects
         horiz = np.array([cam.forward[0], 0.0, cam.forward[2]])
         horiz /= np.linalg.norm(horiz)
         cz = float(horiz @ cam.forward)
         cyv = float(horiz @ cam.up)
         horizon = cam.cy - cam.focal * cyv / cz
-        del fy, uy
         rows = np.arange(H, dtype=np.float64)[:, None]
         sky_t = np.clip(rows / max(horizon, 1.0), 0, 1)
         sky = np.array(SKY_TOP) * (1 - sky_t) + np.array(SKY_BOTTOM) * sky_t
@@ -419,45 +416,43 @@ class Renderer:
         return img
 
     # ------------------------------------------------------------------ drawing
-    def _grid_segments(self, panel: Panel, k: int) -> list[tuple[tuple[int, int, int], np.ndarray]]:
-        """Projected ground-grid segments for frame k, as (colour, (M, 2, 2) pixel segments) per depth band.
+    def _grid(self, cam: _Camera, ground: float, bands, colors) -> list:
+        """Projected ground-grid segments for every frame, per depth band (computed once).
 
-        The grid is fixed in the world (0.5 m squares) and covers a square around the point the
-        camera looks at; segments are clipped to depth bands whose colour fades into the floor.
+        The grid is fixed in the world (0.5 m squares) and covers the region the camera looks at
+        over the clip; segments are clipped to depth bands whose colour fades into the floor.
+        Returns [(colour, segments (N, L, 2, 2), visible (N, L))] per band.
         """
-        cam = panel.camera
         step, radius = 0.5, 5.0
-        c = cam.centers[k]
-        look = c + cam.forward * ((c[1] - panel.ground) / max(-cam.forward[1], 0.05))
-        tx, tz = look[0], look[2]
-        xs = np.arange(math.floor((tx - radius) / step), math.ceil((tx + radius) / step) + 1) * step
-        zs = np.arange(math.floor((tz - radius) / step), math.ceil((tz + radius) / step) + 1) * step
-        g = panel.ground
-        ones_x, ones_z = np.ones_like(xs), np.ones_like(zs)
-        a = np.concatenate([np.stack([xs, g * ones_x, zs[0] * ones_x], 1), np.stack([xs[0] * ones_z, g * ones_z, zs], 1)])
-        b = np.concatenate([np.stack([xs, g * ones_x, zs[-1] * ones_x], 1), np.stack([xs[-1] * ones_z, g * ones_z, zs], 1)])
-        ca, cb = cam.to_camera(a, k), cam.to_camera(b, k)
+        c = cam.centers
+        look = c + cam.forward[None, :] * ((c[:, 1:2] - ground) / max(-cam.forward[1], 0.05))
+        x_lo, x_hi = look[:, 0].min() - radius, look[:, 0].max() + radius
+        z_lo, z_hi = look[:, 2].min() - radius, look[:, 2].max() + radius
+        xs = np.arange(math.floor(x_lo / step), math.ceil(x_hi / step) + 1) * step
+        zs = np.arange(math.floor(z_lo / step), math.ceil(z_hi / step) + 1) * step
+        ox, oz = np.ones_like(xs), np.ones_like(zs)
+        a = np.concatenate([np.stack([xs, ground * ox, zs[0] * ox], 1), np.stack([xs[0] * oz, ground * oz, zs], 1)])
+        b = np.concatenate([np.stack([xs, ground * ox, zs[-1] * ox], 1), np.stack([xs[-1] * oz, ground * oz, zs], 1)])
+        frames = np.arange(len(c))
+        ca = cam.to_camera(np.broadcast_to(a, (len(c),) + a.shape), frames)  # (N, L, 3)
+        cb = cam.to_camera(np.broadcast_to(b, (len(c),) + b.shape), frames)
+        dz = cb[..., 2] - ca[..., 2]
+        flat = np.abs(dz) < 1e-12
+        safe = np.where(flat, 1.0, dz)
         out = []
-        for (zlo, zhi), color in zip(panel.grid_bands, panel.grid_colors):
-            za, zb = ca[:, 2], cb[:, 2]
-            lo, hi = np.minimum(za, zb), np.maximum(za, zb)
-            keep = (hi > zlo) & (lo < zhi)
-            if not np.any(keep):
-                continue
-            p, q = ca[keep], cb[keep]
-            dz = q[:, 2] - p[:, 2]
-            safe = np.where(np.abs(dz) < 1e-12, 1e-12, dz)
-            t_lo = (zlo - p[:, 2]) / safe
-            t_hi = (zhi - p[:, 2]) / safe
+        for (zlo, zhi), color in zip(bands, colors):
+            t_lo = (zlo - ca[..., 2]) / safe
+            t_hi = (zhi - ca[..., 2]) / safe
             t0 = np.clip(np.where(dz >= 0, t_lo, t_hi), 0, 1)
             t1 = np.clip(np.where(dz >= 0, t_hi, t_lo), 0, 1)
-            flat = np.abs(dz) < 1e-12
+            inside_flat = flat & (ca[..., 2] > zlo) & (ca[..., 2] < zhi)
             t0 = np.where(flat, 0.0, t0)
-            t1 = np.where(flat, 1.0, t1)
-            ok = t1 > t0
-            p0 = p[ok] + (q[ok] - p[ok]) * t0[ok, None]
-            p1 = p[ok] + (q[ok] - p[ok]) * t1[ok, None]
-            out.append((color, np.stack([cam.project(p0), cam.project(p1)], axis=1)))
+            t1 = np.where(flat, np.where(inside_flat, 1.0, 0.0), t1)
+            visible = t1 > t0
+            p0 = ca + (cb - ca) * t0[..., None]
+            p1 = ca + (cb - ca) * t1[..., None]
+            segs = np.stack([cam.project(p0), cam.project(p1)], axis=-2)
+            out.append((color, segs, visible))
         return out
 
     def _draw_panel(self, panel: Panel, k: int) -> Image.Image:
@@ -465,19 +460,21 @@ class Renderer:
         img = panel.background.copy()
         dr = ImageDraw.Draw(img)
         # ground grid, in depth bands that fade into the floor colour with distance
-        for color, segs in self._grid_segments(panel, k):
-            for seg in segs.tolist():
-                dr.line([seg[0], seg[1]], fill=color, width=S)
+        for color, segs, visible in panel.grid:
+            for a, b in segs[k][visible[k]].tolist():
+                dr.line([tuple(a), tuple(b)], fill=color, width=S)
         parents = panel.track.parents
-        xy = panel.xy[k]
-        sxy = panel.shadow_xy[k]
+        xy_np = panel.xy[k]
+        xy = xy_np.tolist()
+        sxy = panel.shadow_xy[k].tolist()
         scale = panel.scale[k]
-        bone_w = np.clip(0.045 * scale, 2 * S, 14 * S)
+        bone_w = np.clip(0.045 * scale, 2 * S, 14 * S).astype(int).tolist()
+        shadow_w = [int(w * 1.2) for w in bone_w]
         bones = [j for j in range(len(parents)) if parents[j] >= 0]
         # shadow
         for j in bones:
             p = parents[j]
-            dr.line([tuple(sxy[p]), tuple(sxy[j])], fill=SHADOW_COLOR, width=int(bone_w[j] * 1.2))
+            dr.line([tuple(sxy[p]), tuple(sxy[j])], fill=SHADOW_COLOR, width=shadow_w[j])
         contacts = panel.sampled["contacts"]
         if contacts is not None:
             for j in np.nonzero(contacts[k])[0]:
@@ -495,7 +492,7 @@ class Renderer:
             p = parents[j]
             a, b = tuple(xy[p]), tuple(xy[j])
             col = side_color[int(panel.side[j])]
-            w = int(bone_w[j])
+            w = bone_w[j]
             dr.line([a, b], fill=col, width=w)
             r = w / 2
             dr.ellipse([b[0] - r, b[1] - r, b[0] + r, b[1] + r], fill=col)
@@ -504,8 +501,8 @@ class Renderer:
             h, e = panel.head
             if e is not None:
                 # a disc over the head bone (base of the skull to the top of the head)
-                x, y = (xy[h] + xy[e]) / 2
-                r = max(0.55 * float(np.hypot(*(xy[e] - xy[h]))), 0.08 * scale[h])
+                x, y = (xy_np[h] + xy_np[e]) / 2
+                r = max(0.55 * float(np.hypot(*(xy_np[e] - xy_np[h]))), 0.08 * scale[h])
             else:
                 x, y = xy[h]
                 r = 0.1 * scale[h]
@@ -518,8 +515,7 @@ class Renderer:
                 dr.ellipse([x - r, y - r, x + r, y + r], fill=CONTACT_COLOR, outline=(120, 80, 0), width=S)
         self._draw_text(panel, dr, k)
         if self.show_timeline:
-            img.paste(panel.timeline, (0, img.height - panel.timeline.height))
-            self._draw_cursor(panel, dr, k, img.height - panel.timeline.height)
+            self._draw_cursor(panel, dr, k, self._timeline_top)
         return img
 
     def _draw_text(self, panel: Panel, dr: ImageDraw.ImageDraw, k: int) -> None:
@@ -528,8 +524,7 @@ class Renderer:
         track = panel.track
         done = t > track.duration + 0.5 / self.fps
         x, y = 14 * S, 12 * S
-        if track.label:
-            dr.text((x, y), track.label, font=self._font_label, fill=panel.color)
+        if track.label:  # drawn into the background
             y += 24 * S
         tt = min(t, track.duration)
         dr.text((x, y), f"t  {tt:5.2f} s / {track.duration:.2f} s", font=self._font_text, fill=TEXT_COLOR)
