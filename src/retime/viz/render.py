@@ -363,7 +363,7 @@ class Renderer:
             ground=ground,
             sampled=sampled,
             background=background,
-            grid=self._grid(cam, ground, grid_bands, grid_colors),
+            grid=self._grid(cam, ground, grid_bands, grid_colors, view_h - 1),
             side=_sides(track.names, track.parents),
             head=head,
         )
@@ -416,7 +416,7 @@ class Renderer:
         return img
 
     # ------------------------------------------------------------------ drawing
-    def _grid(self, cam: _Camera, ground: float, bands, colors) -> list:
+    def _grid(self, cam: _Camera, ground: float, bands, colors, y_max: float) -> list:
         """Projected ground-grid segments for every frame, per depth band (computed once).
 
         The grid is fixed in the world (0.5 m squares) and covers the region the camera looks at
@@ -451,8 +451,15 @@ class Renderer:
             visible = t1 > t0
             p0 = ca + (cb - ca) * t0[..., None]
             p1 = ca + (cb - ca) * t1[..., None]
-            segs = np.stack([cam.project(p0), cam.project(p1)], axis=-2)
-            out.append((color, segs, visible))
+            s0, s1 = cam.project(p0), cam.project(p1)
+            # clip at the bottom of the view (the speed strip lies below it)
+            y0, y1 = s0[..., 1], s1[..., 1]
+            visible &= (y0 <= y_max) | (y1 <= y_max)
+            dy = np.where(np.abs(y1 - y0) < 1e-9, 1e-9, y1 - y0)
+            t = np.clip((y_max - y0) / dy, 0.0, 1.0)[..., None]
+            s0n = np.where((y0 > y_max)[..., None], s0 + (s1 - s0) * t, s0)
+            s1n = np.where((y1 > y_max)[..., None], s0 + (s1 - s0) * t, s1)
+            out.append((color, np.stack([s0n, s1n], axis=-2), visible))
         return out
 
     def _draw_panel(self, panel: Panel, k: int) -> Image.Image:
