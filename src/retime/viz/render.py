@@ -279,9 +279,8 @@ class Renderer:
         self._font_label = _font(17 * S, bold=True)
         self._font_text = _font(13 * S)
         self._font_small = _font(10 * S)
-        # one viewing direction for all panels (from the first track), so they compare directly
-        travel = _travel_direction(self.tracks[0])
-        self._travel = travel
+        # each panel looks across its own direction of travel; retimed versions of one motion
+        # share their path, hence the same view, so they compare directly
         self.panels = [self._make_panel(t, i, camera_distance, follow_sigma) for i, t in enumerate(self.tracks)]
         self.width = self.panel_w * len(self.panels)
         self.height = self.panel_h
@@ -302,7 +301,7 @@ class Renderer:
         focal = (view_h / 2) / math.tan(fov / 2)
         dist = camera_distance if camera_distance else 1.65 * body_h / (2 * math.tan(fov / 2))
         # steady camera: fixed orientation, smoothed horizontal root position
-        d = self._travel
+        d = _travel_direction(track)
         side = np.array([-d[2], 0.0, d[0]])
         yaw = math.radians(28.0)
         back = math.cos(yaw) * side + math.sin(yaw) * d
