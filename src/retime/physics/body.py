@@ -1,0 +1,566 @@
+"""The character's body: segment masses and inertias, foot soles, friction and torque limits.
+
+Defaults (every value can be overridden by a TOML body file, see :func:`read_body`):
+
+* **Total mass**: 70 kg unless given. (Scaling every mass scales the dynamics and the default
+  torque limits, which come from the same dynamics, alike; so the feasible timings barely depend
+  on it.)
+* **Segment masses**: de Leva (1996, J. Biomech. 29:1223, male table) fractions of the total:
+  head+neck 6.94 %, trunk 43.46 % (pelvis 11.17 %, the rest of the trunk 32.29 %), and per side
+  upper arm 2.71 %, forearm 1.62 %, hand 0.61 %, thigh 14.16 %, shank 4.33 %, foot 1.37 %.
+  Skeleton joints are assigned to these segments by structure, starting from the feet and hands
+  found by name (``lfoot``/``LeftFoot``/``LeftAnkle``/``lFoot``..., ``lwrist``/``LeftHand``...):
+  foot joint and its descendants = foot, its parent = shank, the next = thigh, joints between the
+  thigh and the root = pelvis (with the root); hand joint and descendants = hand, its parent =
+  forearm, the next = upper arm; joints named like head/neck (and descendants) = head; the rest =
+  trunk. A segment made of several joints shares its mass in proportion to bone length (side
+  branches of the trunk, such as clavicles, count 0.3 of their length). Missing segments give their
+  share to the others proportionally.
+* **Centres of mass and inertias**: each joint's body is the bone from the joint to the mean of its
+  children (or its end site); the centre of mass lies along it at de Leva's fraction (e.g. thigh
+  0.41, shank 0.45) and the inertia is that of a rod with de Leva's radii of gyration (transverse,
+  longitudinal; e.g. thigh 0.329, 0.149 of the bone length). A bone of zero length gets a sphere of
+  radius 0.1 m.
+* **Soles**: one rectangle per foot, laid out in the frame of the motion where the foot is most
+  planted (or in the rest pose without a motion), with y up: the sole plane lies ``SOLE_PAD`` = 2 cm below the lower of the toe joint and the toe tip; heel
+  corners (on the foot joint's body) are 0.3 foot-lengths behind the ankle, 0.26 foot-lengths apart;
+  toe corners (on the toe joint's body, or the foot's if there is none) are halfway from the toe
+  joint to the tip, 0.38 foot-lengths apart (foot length = heel to tip).
+* **Friction** 0.5; **torque limits** estimated from the original motion (see
+  :mod:`retime.physics.dynamics`): ``torque_margin`` (1.5) times the largest |torque| of each joint
+  axis over the clip, plus ``torque_floor`` (2 N m).
+"""
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FormatError, RetimeError
+from ..io_util import atomic_write
+from .tree import FIXED, FREE, SPHERICAL, TreeModel
+
+BODY_MASS = 70.0
+SOLE_PAD = 0.02
+FRICTION = 0.5
+TORQUE_MARGIN = 1.5
+TORQUE_FLOOR = 2.0
+ZERO_BONE_RADIUS = 0.1
+
+# segment: (mass fraction per side or whole, COM fraction from the proximal joint,
+#           radius of gyration transverse, longitudinal) -- de Leva 1996, male
+DE_LEVA = {
+    "head": (0.0694, 0.50, 0.309, 0.261),
+    "pelvis": (0.1117, 0.50, 0.30, 0.30),
+    "trunk": (0.3229, 0.50, 0.317, 0.169),
+    "upperarm": (0.0271, 0.5772, 0.277, 0.158),
+    "forearm": (0.0162, 0.4574, 0.270, 0.121),
+    "hand": (0.0061, 0.50, 0.40, 0.30),
+    "thigh": (0.1416, 0.4095, 0.329, 0.149),
+    "shank": (0.0433, 0.4459, 0.252, 0.103),
+    "foot": (0.0137, 0.4415, 0.251, 0.124),
+}
+SIDED = ("upperarm", "forearm", "hand", "thigh", "shank", "foot")
+FOOT_RE = re.compile(r"foot|ankle", re.I)
+HAND_RE = re.compile(r"hand|wrist", re.I)
+TOE_RE = re.compile(r"toe|ball", re.I)
+HEAD_RE = re.compile(r"head|neck|skull|jaw|eye", re.I)
+SIDES = ("left", "right")
+
+
+@dataclass
+class Foot:
+    """A rectangular sole: two heel corners on ``joint``'s body and two toe corners on
+    ``toe_joint``'s body, each in that joint's frame (metres)."""
+
+    side: str
+    joint: str
+    toe_joint: str
+    heel: np.ndarray  # (2, 3)
+    toe: np.ndarray  # (2, 3)
+
+    def __post_init__(self):
+        self.heel = np.asarray(self.heel, dtype=float).reshape(2, 3)
+        self.toe = np.asarray(self.toe, dtype=float).reshape(2, 3)
+
+
+@dataclass
+class Body:
+    """Inertial model of a skeleton: one rigid body per joint (the bone from the joint onwards)."""
+
+    names: list[str]
+    mass: np.ndarray  # (J,) kg
+    com: np.ndarray  # (J, 3) joint frame, metres
+    inertia: np.ndarray  # (J, 3, 3) about the COM, joint frame, kg m^2
+    feet: list[Foot]
+    friction: float = FRICTION
+    torque_margin: float = TORQUE_MARGIN
+    torque_floor: float = TORQUE_FLOOR
+    torque_limits: dict[str, np.ndarray] = field(default_factory=dict)  # joint -> (3,) N m, symmetric
+    segments: dict[str, str] = field(default_factory=dict)  # joint -> de Leva segment (informational)
+
+    def __post_init__(self):
+        self.mass = np.asarray(self.mass, dtype=float)
+        self.com = np.asarray(self.com, dtype=float).reshape(-1, 3)
+        self.inertia = np.asarray(self.inertia, dtype=float).reshape(-1, 3, 3)
+        self.torque_limits = {k: np.broadcast_to(np.asarray(v, dtype=float), (3,)).copy()
+                              for k, v in self.torque_limits.items()}
+
+    @property
+    def total_mass(self) -> float:
+        return float(self.mass.sum())
+
+    def index(self, name: str) -> int:
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise RetimeError(f"no segment named {name!r}; segments: {', '.join(self.names)}") from None
+
+    def mass_factor_array(self, mass_factors) -> np.ndarray:
+        """(J,) factors from None, a {segment: factor} mapping or an array."""
+        out = np.ones(len(self.names))
+        if mass_factors is None:
+            return out
+        if isinstance(mass_factors, dict):
+            for name, f in mass_factors.items():
+                if not (float(f) > 0):
+                    raise RetimeError(f"mass factor of {name!r} must be positive, got {f}")
+                out[self.index(name)] = float(f)
+            return out
+        arr = np.asarray(mass_factors, dtype=float)
+        if arr.shape != out.shape or np.any(arr <= 0):
+            raise RetimeError(f"mass factors must be {len(out)} positive numbers")
+        return arr
+
+    def tree(self, skeleton) -> TreeModel:
+        """The rigid-body tree of this body on ``skeleton`` (see :func:`skeleton_tree`)."""
+        check_skeleton(self, skeleton)
+        return skeleton_tree(skeleton, self)
+
+
+def skeleton_tree(skeleton, body: Body | None = None) -> TreeModel:
+    """A free-floating root, ball joints where the skeleton has rotation DOFs and fixed joints where
+    it has none; offsets in metres; the body's inertial parameters (zero without a body)."""
+    J = skeleton.n_joints
+    jtype = [FREE] + [SPHERICAL if any(d.startswith("r") for d in dofs) else FIXED for dofs in skeleton.dof[1:]]
+    if body is None:
+        mass, com, inertia = np.zeros(J), np.zeros((J, 3)), np.zeros((J, 3, 3))
+    else:
+        mass, com, inertia = body.mass, body.com, body.inertia
+    return TreeModel(list(skeleton.names), skeleton.parents, jtype, skeleton.offsets * skeleton.meters_per_unit,
+                     mass, com, inertia)
+
+
+def check_skeleton(body: Body, skeleton) -> None:
+    if list(body.names) != list(skeleton.names):
+        missing = sorted(set(skeleton.names) - set(body.names))
+        extra = sorted(set(body.names) - set(skeleton.names))
+        raise RetimeError("the body model does not match the skeleton"
+                          + (f"; missing segments: {', '.join(missing)}" if missing else "")
+                          + (f"; unknown segments: {', '.join(extra)}" if extra else ""))
+
+
+# ---------------------------------------------------------------------------------------------
+# defaults from the skeleton
+
+
+def rest_positions(skeleton) -> np.ndarray:
+    """World joint positions (J, 3) in metres in the rest pose (all local rotations identity)."""
+    pos = np.zeros((skeleton.n_joints, 3))
+    off = skeleton.offsets * skeleton.meters_per_unit
+    for j, p in enumerate(skeleton.parents):
+        pos[j] = off[j] + (pos[p] if p >= 0 else 0.0)
+    return pos
+
+
+def bone_ends(skeleton) -> np.ndarray:
+    """(J, 3) end of each joint's bone in its frame: the mean of its children's offsets (ignoring
+    children at the joint itself) and end sites; zero if there are none."""
+    off = skeleton.offsets * skeleton.meters_per_unit
+    ends = [[] for _ in range(skeleton.n_joints)]
+    for j, p in enumerate(skeleton.parents):
+        if p >= 0:
+            ends[p].append(off[j])
+    for j, o in skeleton.end_sites:
+        ends[j].append(np.asarray(o, dtype=float) * skeleton.meters_per_unit)
+    out = np.zeros((skeleton.n_joints, 3))
+    for j, e in enumerate(ends):
+        e = [v for v in e if np.linalg.norm(v) > 1e-6]
+        if e:
+            out[j] = np.mean(e, axis=0)
+    return out
+
+
+def _side(name: str) -> str | None:
+    low = name.lower()
+    if low.startswith("left") or low.endswith(("_l", ".l")) or (low[:1] == "l" and not low.startswith("low")):
+        return "left"
+    if low.startswith("right") or low.endswith(("_r", ".r")) or low[:1] == "r":
+        return "right"
+    return None
+
+
+def _depth(parents, j):
+    d = 0
+    while parents[j] >= 0:
+        j = parents[j]
+        d += 1
+    return d
+
+
+def _descendants(parents, j):
+    out = [j]
+    for k in range(j + 1, len(parents)):
+        if parents[k] in out:
+            out.append(k)
+    return out
+
+
+def _find_limb(skeleton, pattern, side, exclude=()):
+    cands = [j for j, n in enumerate(skeleton.names)
+             if pattern.search(n) and _side(n) == side and not TOE_RE.search(n) and j not in exclude]
+    if not cands:
+        return None
+    return min(cands, key=lambda j: _depth(skeleton.parents, j))
+
+
+def find_feet(skeleton, feet_names=None) -> dict[str, tuple[int, int]]:
+    """{side: (foot joint, toe joint)} found by name; the toe joint is the foot's child named like a
+    toe (or its only child), else the foot itself. ``feet_names`` {side: (foot, toe)} overrides."""
+    out = {}
+    for side in SIDES:
+        if feet_names and side in feet_names:
+            foot_name, toe_name = feet_names[side]
+            foot = skeleton.index(foot_name)
+            toe = skeleton.index(toe_name) if toe_name else foot
+        else:
+            foot = _find_limb(skeleton, FOOT_RE, side)
+            if foot is None:
+                raise RetimeError(
+                    f"cannot find the {side} foot: no joint named like {'lfoot, LeftFoot, LeftAnkle' if side == 'left' else 'rfoot, RightFoot, RightAnkle'}"
+                    f" (joints: {', '.join(skeleton.names)}); name it in a body file ([feet.{side}] joint = ...)")
+            children = skeleton.children(foot)
+            toes = [c for c in children if TOE_RE.search(skeleton.names[c])]
+            toe = toes[0] if toes else (children[0] if len(children) == 1 else foot)
+        out[side] = (foot, toe)
+    return out
+
+
+def classify_segments(skeleton, feet=None) -> dict[int, str]:
+    """de Leva segment of every joint (see the module docstring)."""
+    parents = skeleton.parents
+    feet = feet or find_feet(skeleton)
+    seg: dict[int, str] = {0: "pelvis"}
+
+    def chain(start, names):
+        j = start
+        for name in names:
+            if j is None or j <= 0 or j in seg:
+                raise RetimeError(f"cannot assign the {name} segment above joint {skeleton.names[start]!r}; "
+                                  "give segment masses in a body file")
+            seg[j] = name
+            j = int(parents[j]) if parents[j] >= 0 else None
+        return j
+
+    for side, (foot, _) in feet.items():
+        for k in _descendants(parents, foot):
+            seg[k] = "foot"
+        j = chain(int(parents[foot]), ["shank", "thigh"])
+        while j is not None and j > 0 and j not in seg:
+            seg[j] = "pelvis"
+            j = int(parents[j])
+    for side in SIDES:
+        hand = _find_limb(skeleton, HAND_RE, side, exclude=seg)
+        if hand is None:
+            continue
+        for k in _descendants(parents, hand):
+            seg.setdefault(k, "hand")
+        chain(int(parents[hand]), ["forearm", "upperarm"])
+    for j, n in enumerate(skeleton.names):
+        if j not in seg and HEAD_RE.search(n):
+            for k in _descendants(parents, j):
+                seg.setdefault(k, "head")
+    for j in range(skeleton.n_joints):
+        seg.setdefault(j, "trunk")
+    return seg
+
+
+def _rod_inertia(mass, vec, kt, kl):
+    L = float(np.linalg.norm(vec))
+    if L < 1e-6:
+        return np.eye(3) * 0.4 * mass * ZERO_BONE_RADIUS ** 2
+    u = vec / L
+    uu = np.outer(u, u)
+    return mass * L * L * (kt * kt * (np.eye(3) - uu) + kl * kl * uu)
+
+
+def default_body(skeleton, mass=None, feet_names=None, motion=None, frames=None) -> Body:
+    """The documented default body for ``skeleton`` (total ``mass`` in kg, default 70); ``motion``
+    (or its world ``frames``, see :func:`world_frames`, with the motion) places the soles (see
+    :func:`default_foot`)."""
+    rest = rest_positions(skeleton)
+    if mass is None:
+        mass = BODY_MASS
+    if not (mass > 0):
+        raise RetimeError(f"body mass must be positive, got {mass}")
+    feet_idx = find_feet(skeleton, feet_names)
+    seg = classify_segments(skeleton, feet_idx)
+    ends = bone_ends(skeleton)
+    length = np.linalg.norm(ends, axis=1)
+    # ancestors of head joints are spine; other trunk joints are side branches
+    spine = set()
+    for j, s in seg.items():
+        if s == "head":
+            k = j
+            while k >= 0:
+                spine.add(k)
+                k = int(skeleton.parents[k])
+    groups: dict[tuple[str, str | None], list[int]] = {}
+    for j, s in seg.items():
+        side = None
+        if s in SIDED:
+            side = "left" if rest[j, 0] - rest[0, 0] > 0 else "right"
+            for sd, (foot, _) in feet_idx.items():
+                if j in _descendants(skeleton.parents, foot):
+                    side = sd
+        groups.setdefault((s, side), []).append(j)
+    share = {g: DE_LEVA[g[0]][0] for g in groups}
+    scale = mass / sum(share.values())
+    m = np.zeros(skeleton.n_joints)
+    com = np.zeros((skeleton.n_joints, 3))
+    inertia = np.zeros((skeleton.n_joints, 3, 3))
+    for g, joints in groups.items():
+        w = np.array([length[j] * (0.3 if g[0] == "trunk" and j not in spine else 1.0) for j in joints])
+        w = np.maximum(w, 0.1 * w.max()) if w.max() > 0 else np.ones(len(joints))
+        w = w / w.sum()
+        _, frac, kt, kl = DE_LEVA[g[0]]
+        for j, wj in zip(joints, w):
+            m[j] = share[g] * scale * wj
+            com[j] = frac * ends[j]
+            inertia[j] = _rod_inertia(m[j], ends[j], kt, kl)
+    if motion is not None and frames is None:
+        frames = world_frames(motion)
+    fps = motion.fps if motion is not None else None
+    feet = [default_foot(skeleton, side, foot, toe, frames if motion is not None else None, fps)
+            for side, (foot, toe) in feet_idx.items()]
+    return Body(names=list(skeleton.names), mass=m, com=com, inertia=inertia, feet=feet,
+                segments={skeleton.names[j]: s for j, s in sorted(seg.items())})
+
+
+def world_frames(motion):
+    """World joint positions (F, J, 3) in metres and rotation matrices (F, J, 3, 3) of a motion."""
+    from ..motion import forward_kinematics
+    from .tree import quat_to_matrix
+
+    pos, rot = forward_kinematics(motion)
+    return pos * motion.skeleton.meters_per_unit, quat_to_matrix(rot)
+
+
+def stance_frame(frames, fps, foot: int, toe: int, toe_end=None) -> int:
+    """The frame where a foot looks most planted: its ankle and toe tip both near their lowest and
+    both slow (score = height above the clip minimum + 0.05 s x speed, summed). ``frames`` are world
+    frames (positions (F, J, 3), rotations (F, J, 3, 3)); ``toe_end`` the toe tip in the toe frame."""
+    pos, R = frames
+    pts = [pos[:, foot]]
+    if toe_end is not None and np.linalg.norm(toe_end) > 1e-6:
+        pts.append(pos[:, toe] + R[:, toe] @ toe_end)
+    score = np.zeros(len(pos))
+    for x in pts:
+        h = x[:, 1] - x[:, 1].min()
+        speed = np.linalg.norm(np.gradient(x, axis=0), axis=1) * fps if len(pos) > 1 else 0.0
+        score += h + 0.05 * speed
+    return int(np.argmin(score))
+
+
+def default_foot(skeleton, side, foot, toe, frames=None, fps=None) -> Foot:
+    """Sole corners of one foot (see the module docstring). The foot's geometry is read in the rest
+    pose, or, given the motion's world frames (see :func:`world_frames`) and frame rate, in the frame
+    where the foot is most planted (:func:`stance_frame`), so skeletons whose rest pose points the
+    feet down still get a sole under the foot."""
+    ends = bone_ends(skeleton)
+    if frames is None:
+        pos = rest_positions(skeleton)
+        R = np.tile(np.eye(3), (skeleton.n_joints, 1, 1))
+    else:
+        f = stance_frame(frames, fps, foot, toe, ends[toe] if toe != foot else None)
+        pos, R = frames[0][f], frames[1][f]
+    A = pos[foot]
+    B = pos[toe] if toe != foot else A + R[foot] @ ends[foot]
+    T = B + R[toe] @ ends[toe] if toe != foot else B
+    if np.linalg.norm(T - B) < 1e-6:  # no toe bone: extend the foot by 40 %
+        T = B + 0.4 * (B - A)
+    fwd = (T - A) * np.array([1.0, 0.0, 1.0])
+    reach = float(np.linalg.norm(fwd))
+    if reach < 1e-3:
+        raise RetimeError(f"the {side} foot ({skeleton.names[foot]}) has no horizontal length; "
+                          "give its sole corners in a body file")
+    fwd /= reach
+    lat = np.cross(fwd, [0.0, 1.0, 0.0])
+    heel_back = 0.3 * reach
+    length = reach + heel_back
+    y = min(B[1], T[1]) - SOLE_PAD
+    heel_c = A - heel_back * fwd
+    toe_c = B + 0.5 * (T - B)
+    heel = np.array([heel_c + s * 0.13 * length * lat for s in (1, -1)])
+    toes = np.array([toe_c + s * 0.19 * length * lat for s in (1, -1)])
+    heel[:, 1] = y
+    toes[:, 1] = y
+    return Foot(side=side, joint=skeleton.names[foot], toe_joint=skeleton.names[toe],
+                heel=(heel - A) @ R[foot], toe=(toes - pos[toe]) @ R[toe])
+
+
+# ---------------------------------------------------------------------------------------------
+# TOML body files
+
+def _fmt(x) -> str:
+    return repr(float(x))
+
+
+def _vec(v) -> str:
+    return "[" + ", ".join(_fmt(x) for x in np.ravel(v)) + "]"
+
+
+def write_body(body: Body, path, torque_limits=None, note: str = "") -> None:
+    """Write ``body`` as an editable TOML file (atomically). ``torque_limits`` {joint: (3,)} are
+    written instead of the body's own (e.g. the limits estimated from a motion)."""
+    limits = body.torque_limits if torque_limits is None else torque_limits
+    lines = [
+        "# retime body model: edit, then pass with --body. Units: kg, metres, N m.",
+        "# Vectors are in each joint's frame in the rest pose (all rotations identity, y up).",
+        "# inertia = [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] about the segment's centre of mass.",
+    ]
+    if note:
+        lines += [f"# {line}" for line in note.splitlines()]
+    lines += [
+        f"mass = {_fmt(body.total_mass)}  # total; informational when every segment is listed",
+        f"friction = {_fmt(body.friction)}",
+        f"torque_margin = {_fmt(body.torque_margin)}  # default limits: margin * max |torque| of the motion + floor",
+        f"torque_floor = {_fmt(body.torque_floor)}",
+        "",
+    ]
+    for foot in body.feet:
+        lines += [f"[feet.{foot.side}]", f'joint = "{foot.joint}"', f'toe_joint = "{foot.toe_joint}"',
+                  f"heel = [{_vec(foot.heel[0])}, {_vec(foot.heel[1])}]  # corners in {foot.joint}'s frame",
+                  f"toe = [{_vec(foot.toe[0])}, {_vec(foot.toe[1])}]  # corners in {foot.toe_joint}'s frame", ""]
+    if limits:
+        lines.append("[torque_limits]  # symmetric limits about the joint's x, y, z axes")
+        for name, v in limits.items():
+            lines.append(f"{_key(name)} = {_vec(v)}")
+        lines.append("")
+    for j, name in enumerate(body.names):
+        I = body.inertia[j]
+        lines += [f"[segments.{_key(name)}]"]
+        if name in body.segments:
+            lines.append(f'kind = "{body.segments[name]}"')
+        lines += [f"mass = {_fmt(body.mass[j])}", f"com = {_vec(body.com[j])}",
+                  f"inertia = {_vec([I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]])}", ""]
+    with atomic_write(path, "w") as f:
+        f.write("\n".join(lines))
+
+
+def _key(name: str) -> str:
+    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else '"' + name.replace('"', '\\"') + '"'
+
+
+def _number(path, where, value, positive=False, nonneg=False):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise FormatError(path, f"{where} must be a number, got {value!r}")
+    if positive and value <= 0:
+        raise FormatError(path, f"{where} must be positive, got {value}")
+    if nonneg and value < 0:
+        raise FormatError(path, f"{where} must not be negative, got {value}")
+    return float(value)
+
+
+def _vector(path, where, value, n):
+    if not isinstance(value, list) or len(value) != n:
+        raise FormatError(path, f"{where} must be a list of {n} numbers, got {value!r}")
+    return np.array([_number(path, where, v) for v in value])
+
+
+def read_body(path, skeleton, motion=None, frames=None) -> Body:
+    """Read a TOML body file for ``skeleton``. Anything it leaves out takes the default; a segment
+    given a mass but no inertia keeps the default inertia scaled by the mass ratio."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise FormatError(path, "no such body file") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise FormatError(path, f"not a valid TOML body file: {e}") from None
+    known = {"mass", "friction", "torque_margin", "torque_floor", "feet", "segments", "torque_limits"}
+    for key in data:
+        if key not in known:
+            raise FormatError(path, f"unknown setting {key!r}; known: {', '.join(sorted(known))}")
+    feet_names = {}
+    for side, f in (data.get("feet") or {}).items():
+        if side not in SIDES or not isinstance(f, dict) or not isinstance(f.get("joint"), str):
+            raise FormatError(path, f"[feet.{side}] must be [feet.left] or [feet.right] with joint = \"NAME\"")
+        for key in ("joint", "toe_joint"):
+            if f.get(key) and f[key] not in skeleton.names:
+                raise FormatError(path, f"[feet.{side}] {key} {f[key]!r} is not a joint of the skeleton")
+        feet_names[side] = (f["joint"], f.get("toe_joint") or f["joint"])
+    segments = data.get("segments") or {}
+    total = data.get("mass")
+    body = default_body(skeleton, mass=None if total is None else _number(path, "mass", total, positive=True),
+                        feet_names=feet_names or None, motion=motion, frames=frames)
+    if total is not None and segments and set(segments) >= set(skeleton.names):
+        total = None  # every segment listed: the total is informational
+    for name, s in segments.items():
+        if name not in skeleton.names:
+            raise FormatError(path, f"[segments.{name}] is not a joint of the skeleton "
+                                    f"(joints: {', '.join(skeleton.names)})")
+        j = skeleton.index(name)
+        if not isinstance(s, dict):
+            raise FormatError(path, f"[segments.{name}] must be a table")
+        if "mass" in s:
+            new = _number(path, f"[segments.{name}] mass", s["mass"], nonneg=True)
+            if "inertia" not in s and body.mass[j] > 0:
+                body.inertia[j] *= new / body.mass[j]
+            body.mass[j] = new
+        if "com" in s:
+            body.com[j] = _vector(path, f"[segments.{name}] com", s["com"], 3)
+        if "inertia" in s:
+            v = _vector(path, f"[segments.{name}] inertia", s["inertia"], 6)
+            I = np.array([[v[0], v[3], v[4]], [v[3], v[1], v[5]], [v[4], v[5], v[2]]])
+            if np.linalg.eigvalsh(I).min() < -1e-12:
+                raise FormatError(path, f"[segments.{name}] inertia is not positive semi-definite")
+            body.inertia[j] = I
+        if "kind" in s:
+            body.segments[name] = str(s["kind"])
+    for foot in body.feet:
+        f = (data.get("feet") or {}).get(foot.side) or {}
+        for key in ("heel", "toe"):
+            if key in f:
+                pts = f[key]
+                if not isinstance(pts, list) or len(pts) != 2:
+                    raise FormatError(path, f"[feet.{foot.side}] {key} must be two [x, y, z] corners")
+                setattr(foot, key, np.array([_vector(path, f"[feet.{foot.side}] {key}", p, 3) for p in pts]))
+    for key in ("friction", "torque_margin", "torque_floor"):
+        if key in data:
+            setattr(body, key, _number(path, key, data[key], positive=key == "friction", nonneg=True))
+    for name, v in (data.get("torque_limits") or {}).items():
+        if name not in skeleton.names:
+            raise FormatError(path, f"[torque_limits] {name!r} is not a joint of the skeleton")
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            v = [v, v, v]
+        vec = _vector(path, f"[torque_limits] {name}", v, 3)
+        if np.any(vec < 0):
+            raise FormatError(path, f"[torque_limits] {name} must not be negative")
+        body.torque_limits[name] = vec
+    return body
+
+
+def load_body(body, skeleton, motion=None, frames=None) -> Body:
+    """A Body from None (defaults), a Body (checked) or a path to a TOML body file; ``motion`` (and
+    optionally its world ``frames``) places default soles (see :func:`default_foot`)."""
+    if body is None:
+        return default_body(skeleton, motion=motion, frames=frames)
+    if isinstance(body, Body):
+        check_skeleton(body, skeleton)
+        return body
+    return read_body(body, skeleton, motion=motion, frames=frames)

@@ -1,0 +1,242 @@
+"""Foot contacts: when each heel and toe touches the ground, and the friction cones (Eq. 7-11).
+
+Contact points, in this order everywhere (``CONTACT_POINTS``)::
+
+    0 left_heel   1 left_toe   2 right_heel   3 right_toe
+
+Each point is a pair of sole corners (see :class:`retime.physics.body.Foot`): the heel's two
+corners ride on the foot joint's body, the toe's two on the toe joint's body.
+
+**Detection** (:func:`detect_contacts`), per point, from the motion's frames: its height is the lower
+of its two corners' heights above that point's floor, and its speed is the speed of the corners'
+midpoint. A point's floor is the 5th percentile of its height over the clip, but at most 3 cm above
+the lowest such floor of all points (a point that never touches the ground is not made to). A point
+enters contact when it is below ``h_on`` (3 cm) and slower than ``v_on`` (1 m/s) and leaves it
+when it is above ``h_off`` (5 cm) or faster than ``v_off`` (2 m/s) (hysteresis; a swinging foot
+that skims the floor is much faster, a foot pushing off or landing is slower). Contacts and gaps
+shorter than ``min_frames`` (3) are then removed, in that order.
+
+**Contact file** (:func:`read_contacts`, CSV, overrides detection entirely)::
+
+    # point, first frame, last frame (0-based, inclusive); '#' starts a comment
+    point,first,last
+    left_heel,0,120
+    left,200,406        # 'left' / 'right' = heel and toe of that foot; 'both' = all four points
+
+A point not listed is never in contact.
+
+**Friction cones**: Coulomb cones of coefficient ``mu`` about the world up axis (+y; the ground does
+not tilt when gravity does) are approximated by inscribed pyramids with 4 unit edges
+``(+-mu, 1, 0)/sqrt(1+mu^2)`` and ``(0, 1, +-mu)/sqrt(1+mu^2)`` at each of the 4 sole corners of a
+foot: 16 basis forces per foot (Fig. 3). ``N = J^T P`` (Eq. 11) has columns ordered
+``16*foot + 4*corner + edge`` with foot 0 = left, 1 = right and corners
+``heel_a, heel_b, toe_a, toe_b``; the columns of a point not in contact are zero.
+"""
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import numpy as np
+from numba import njit, prange
+
+from ..errors import FormatError, RetimeError
+from ..io_util import atomic_write
+from .tree import points_jacobian_transpose
+
+CONTACT_POINTS = ("left_heel", "left_toe", "right_heel", "right_toe")
+ALIASES = {"left": (0, 1), "right": (2, 3), "both": (0, 1, 2, 3)}
+EDGES_PER_CORNER = 4
+CORNERS_PER_FOOT = 4
+BASIS_PER_FOOT = EDGES_PER_CORNER * CORNERS_PER_FOOT
+
+
+def _feet_in_order(body):
+    by_side = {f.side: f for f in body.feet}
+    missing = [s for s in ("left", "right") if s not in by_side]
+    if missing:
+        raise RetimeError(f"the body model has no {' and '.join(missing)} foot")
+    return [by_side["left"], by_side["right"]]
+
+
+def corner_bodies(body):
+    """(8,) joint names and (8, 3) local positions of the sole corners, in column order."""
+    names, local = [], []
+    for foot in _feet_in_order(body):
+        names += [foot.joint, foot.joint, foot.toe_joint, foot.toe_joint]
+        local += [foot.heel[0], foot.heel[1], foot.toe[0], foot.toe[1]]
+    return names, np.array(local)
+
+
+def corner_positions(body, skeleton, R, o):
+    """World positions (n, 8, 3) of the sole corners given world joint frames R (n, J, 3, 3), o (n, J, 3)."""
+    names, local = corner_bodies(body)
+    idx = [skeleton.index(n) for n in names]
+    return o[:, idx] + np.einsum("npij,pj->npi", R[:, idx], local)
+
+
+def friction_edges(mu: float) -> np.ndarray:
+    """(4, 3) unit edges of the pyramid inscribed in the friction cone of coefficient ``mu`` (y up)."""
+    if not (mu >= 0):
+        raise RetimeError(f"friction coefficient must not be negative, got {mu}")
+    e = np.array([[mu, 1.0, 0.0], [-mu, 1.0, 0.0], [0.0, 1.0, mu], [0.0, 1.0, -mu]])
+    return e / np.sqrt(1.0 + mu * mu)
+
+
+def corner_jacobians(tree, body, skeleton, R, o):
+    """J^T of unit world forces along x, y, z at each sole corner: (n, nv, 8, 3)."""
+    names, _ = corner_bodies(body)
+    x = corner_positions(body, skeleton, R, o)
+    jt = points_jacobian_transpose(tree, R, o, [skeleton.index(n) for n in names], x, np.eye(3)[None])
+    return jt.reshape(jt.shape[0], jt.shape[1], 8, 3)
+
+
+def contact_basis(corner_jt, mu, contact):
+    """N = J^T P (n, nv, 32) from corner Jacobians (n, nv, 8, 3), friction ``mu`` and contact
+    states (n, 4); columns of points not in contact are zero."""
+    n, nv = corner_jt.shape[:2]
+    N = np.empty((n, nv, 8 * EDGES_PER_CORNER))
+    _edges(np.ascontiguousarray(corner_jt), friction_edges(mu), np.asarray(contact, dtype=np.bool_), N)
+    return N
+
+
+@njit(cache=True)
+def _edges(jt, E, contact, out):
+    n, nv, nc, _ = jt.shape
+    ne = E.shape[0]
+    for i in prange(n):
+        for c in range(nc):
+            on = contact[i, c // 2]
+            for v in range(nv):
+                for e in range(ne):
+                    out[i, v, c * ne + e] = (jt[i, v, c, 0] * E[e, 0] + jt[i, v, c, 1] * E[e, 1]
+                                             + jt[i, v, c, 2] * E[e, 2]) if on else 0.0
+
+
+# ---------------------------------------------------------------------------------------------
+# detection
+
+
+def _runs(state, value):
+    """(starts, ends) of the runs of ``value`` in a bool array, ends exclusive."""
+    s = np.concatenate([[False], state == value, [False]])
+    d = np.diff(s.astype(np.int8))
+    return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+
+
+def _clean(state, min_frames):
+    """Drop runs of contact shorter than min_frames, then fill gaps shorter than min_frames
+    (except gaps at either end of the clip)."""
+    state = np.array(state, dtype=bool)
+    for a, b in zip(*_runs(state, True)):
+        if b - a < min_frames:
+            state[a:b] = False
+    for a, b in zip(*_runs(state, False)):
+        if b - a < min_frames and a > 0 and b < len(state):
+            state[a:b] = True
+    return state
+
+
+def point_tracks(motion, body, frames=None):
+    """Height above its own floor (F, 4) and speed (F, 4) of each contact point, in metres and m/s;
+    ``frames``: the motion's world frames if known (see :func:`retime.physics.body.world_frames`)."""
+    from .body import world_frames
+
+    pos, R = world_frames(motion) if frames is None else frames
+    x = corner_positions(body, motion.skeleton, R, pos)  # (F, 8, 3)
+    low = np.minimum(x[:, 0::2, 1], x[:, 1::2, 1])  # (F, 4)
+    mid = 0.5 * (x[:, 0::2] + x[:, 1::2])
+    speed = np.linalg.norm(np.gradient(mid, axis=0), axis=-1) * motion.fps
+    floors = np.percentile(low, 5, axis=0)
+    floors = np.minimum(floors, floors.min() + 0.03)
+    return low - floors, speed
+
+
+def detect_contacts(motion, body, h_on=0.03, h_off=0.05, v_on=1.0, v_off=2.0, min_frames=3,
+                    frames=None) -> np.ndarray:
+    """Contact states (F, 4) of the heel and toe of each foot at the motion's frames (see module)."""
+    height, speed = point_tracks(motion, body, frames)
+    F = motion.n_frames
+    out = np.zeros((F, 4), dtype=bool)
+    for p in range(4):
+        on = False
+        for i in range(F):
+            if on:
+                on = not (height[i, p] > h_off or speed[i, p] > v_off)
+            else:
+                on = height[i, p] < h_on and speed[i, p] < v_on
+            out[i, p] = on
+        out[:, p] = _clean(out[:, p], min_frames)
+    return out
+
+
+def read_contacts(path, n_frames: int) -> np.ndarray:
+    """Contact states (n_frames, 4) from a contact CSV file (format in the module docstring)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise FormatError(path, "no such contact file") from None
+    out = np.zeros((n_frames, 4), dtype=bool)
+    rows = 0
+    for lineno, line in enumerate(text.splitlines(), 1):
+        line = line.split("#", 1)[0].strip()
+        if not line:
+            continue
+        fields = [f.strip() for f in next(csv.reader(io.StringIO(line)))]
+        if fields[:1] == ["point"]:
+            continue
+        if len(fields) != 3:
+            raise FormatError(path, "expected 'point,first,last'", line=lineno)
+        name, first, last = fields
+        if name in CONTACT_POINTS:
+            points = (CONTACT_POINTS.index(name),)
+        elif name in ALIASES:
+            points = ALIASES[name]
+        else:
+            raise FormatError(path, f"unknown contact point {name!r}; use one of "
+                                    f"{', '.join(CONTACT_POINTS + tuple(ALIASES))}", line=lineno)
+        try:
+            a, b = int(first), int(last)
+        except ValueError:
+            raise FormatError(path, f"frames must be whole numbers, got {first!r}, {last!r}", line=lineno) from None
+        if not (0 <= a <= b < n_frames):
+            raise FormatError(path, f"frames {a}..{b} are outside the motion's 0..{n_frames - 1} "
+                                    "(0-based, first <= last)", line=lineno)
+        out[a:b + 1, list(points)] = True
+        rows += 1
+    if rows == 0:
+        raise FormatError(path, "no contact ranges; write lines 'point,first,last' (or detect contacts instead)")
+    return out
+
+
+def write_contacts(path, contact) -> None:
+    """Write contact states (F, 4) as a contact CSV file (one line per run of contact)."""
+    lines = ["# point, first frame, last frame (0-based, inclusive)", "point,first,last"]
+    contact = np.asarray(contact, dtype=bool)
+    for p, name in enumerate(CONTACT_POINTS):
+        s = np.concatenate([[False], contact[:, p], [False]])
+        starts = np.nonzero(~s[:-1] & s[1:])[0]
+        ends = np.nonzero(s[:-1] & ~s[1:])[0] - 1
+        lines += [f"{name},{a},{b}" for a, b in zip(starts, ends)]
+    with atomic_write(path, "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
+def load_contacts(contacts, motion, body, frames=None) -> np.ndarray:
+    """Contact states (F, 4) from None (detect), a contact file path or an (F, 4) bool array."""
+    if contacts is None:
+        return detect_contacts(motion, body, frames=frames)
+    if isinstance(contacts, (str, Path)):
+        return read_contacts(contacts, motion.n_frames)
+    arr = np.asarray(contacts, dtype=bool)
+    if arr.shape != (motion.n_frames, 4):
+        raise RetimeError(f"contact states must have shape ({motion.n_frames}, 4), got {arr.shape}")
+    return arr
+
+
+def at_samples(contact, fps, times) -> np.ndarray:
+    """Contact states at sample times: those of the nearest frame (halfway goes to the later one)."""
+    idx = np.clip(np.floor(np.asarray(times) * fps + 0.5 + 1e-9).astype(int), 0, len(contact) - 1)
+    return np.asarray(contact)[idx]

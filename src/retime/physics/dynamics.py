@@ -1,0 +1,312 @@
+"""Path dynamics (McCann et al. 2006, sec. 3.1-3.2): joint torques along the motion's path as a
+linear function of the retiming.
+
+Along the source path q(s), a retiming p(t) gives q_dot = q' p_dot and
+q_ddot = q'' p_dot^2 + q' p_ddot (Eq. 2-4), so inverse dynamics becomes, per source sample i
+(Eq. 5-6, 11)::
+
+    tau_i = a_i * p_ddot + b_i * p_dot^2 + c_i - N_i @ lambda,     lambda >= 0
+
+with ``a = M(q) q'``, ``b = M(q) q'' + C(q, q') q'``, ``c = g(q)`` (the generalized gravity force,
+``c = sum_k gravity_k * c_k``) and ``N = J^T P`` the friction-cone basis of the feet in contact
+(:mod:`retime.physics.contacts`). The original timing is ``(p_ddot, p_dot^2) = (0, 1)``.
+
+Conventions (all SI: metres, kg, seconds, N, N m):
+
+* generalized coordinates: a free-floating root first (6 rows: force then moment about the root
+  joint, in the root's frame, Pinocchio's free-flyer convention), then 3 rows per ball joint
+  (moment about the joint centre in the joint's frame) in skeleton order; skeleton joints without
+  rotation DOFs (CMU's ``lhipjoint``) are fixed and have no rows. ``dof_names`` names every row.
+* the root rows are unactuated: a physical timing needs them to be 0 (``tau_lo = tau_hi = 0`` there);
+  ``n_root`` says how many there are (0 for the fixed-base benchmark chains).
+* samples are the motion's frames, and with ``samples_per_frame = k`` also ``k - 1`` evenly spaced
+  times between frames; ``times`` are source times in seconds. Contact states at a sample are those
+  of the nearest frame.
+* the path is smoothed for dynamics by a Gaussian of ``smoothing`` seconds (see
+  :mod:`retime.physics.path`); the poses written out are never changed.
+
+Changing gravity, segment masses, friction or torque-limit scale does not rerun the dynamics:
+:func:`dynamics_terms` computes once, per sample and body, the wrench each body needs for the
+``a``, ``b`` and unit-gravity terms (:mod:`retime.physics.tree`) and the Jacobians of the sole
+corners; :meth:`DynamicsTerms.combine` rescales and projects them (the paper's polynomial trick:
+torques are linear in every body's inertial parameters and in gravity).
+
+Torque limits, when the body file gives none, come from the original motion (as in the paper):
+reference contact forces ``lambda_ref >= 0`` are fitted per sample to the original timing by
+non-negative least squares, weighting the root rows 100 times the joint rows (so the contact forces
+explain the root wrench first, then spare the joints), plus a tiny ridge; ``tau_ref = b + c -
+N lambda_ref``; the limit of each joint axis is ``torque_margin * max_i |tau_ref| + torque_floor``.
+``tau_ref`` (original parameters) is kept as the torques of the original motion.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit, prange
+
+from ..errors import RetimeError
+from .body import Body, load_body, skeleton_tree
+from .contacts import CONTACT_POINTS, at_samples, contact_basis, corner_jacobians, corner_positions, load_contacts
+from .path import path_samples, sample_times
+from .tree import TreeModel, kinematics, project, wrenches
+
+STANDARD_GRAVITY = (0.0, -9.81, 0.0)
+DEFAULT_SMOOTHING = 0.025  # seconds
+ROOT_WEIGHT = 100.0
+RIDGE = 1e-9
+
+
+@dataclass
+class PathDynamics:
+    """Per source sample: tau = a * p_ddot + b * p_dot^2 + c - N @ lambda (see the module docstring)."""
+
+    times: np.ndarray  # (n,) source times, seconds
+    a: np.ndarray  # (n, nv) coefficient of p_ddot:  M(q) q'
+    b: np.ndarray  # (n, nv) coefficient of p_dot^2: M(q) q'' + C(q, q') q'
+    c: np.ndarray  # (n, nv) constant: gravity generalized force g(q)
+    N: np.ndarray  # (n, nv, K) contact basis J^T P, K = 16 per foot; zero columns when not in contact
+    contact: np.ndarray  # (n, 4) bool: left_heel, left_toe, right_heel, right_toe
+    tau_lo: np.ndarray  # (nv,) lower torque limits (0 on root rows)
+    tau_hi: np.ndarray  # (nv,) upper torque limits (0 on root rows)
+    n_root: int = 6  # unactuated rows at the start (6 free-floating root, 0 fixed base)
+    dof_names: list[str] = field(default_factory=list)
+    contact_names: tuple[str, ...] = CONTACT_POINTS
+    total_mass: float = 0.0  # kg, with the mass factors applied
+    gravity: np.ndarray = field(default_factory=lambda: np.array(STANDARD_GRAVITY))
+    friction: float = 0.5
+    fps: float = 0.0  # frame rate of the source motion
+    samples_per_frame: int = 1
+    tau_ref: np.ndarray | None = None  # (n, nv) torques of the original timing (original physics)
+    lambda_ref: np.ndarray | None = None  # (n, K) the contact forces behind tau_ref
+    corners: np.ndarray | None = None  # (n, 8, 3) world positions of the sole corners
+
+    @property
+    def n_samples(self) -> int:
+        return len(self.times)
+
+    @property
+    def nv(self) -> int:
+        return self.a.shape[1]
+
+    def torques(self, pdd, pd2, lam=None) -> np.ndarray:
+        """tau (n, nv) for per-sample p_ddot and p_dot^2 (scalars or (n,)) and contact forces (n, K)."""
+        pdd = np.broadcast_to(np.asarray(pdd, dtype=float), (self.n_samples,))[:, None]
+        pd2 = np.broadcast_to(np.asarray(pd2, dtype=float), (self.n_samples,))[:, None]
+        tau = self.a * pdd + self.b * pd2 + self.c
+        if lam is not None:
+            tau = tau - np.einsum("nvk,nk->nv", self.N, lam)
+        return tau
+
+
+@dataclass
+class DynamicsTerms:
+    """Everything :class:`PathDynamics` needs, computed once; :meth:`combine` applies parameters."""
+
+    tree: TreeModel
+    body: Body | None
+    times: np.ndarray
+    fps: float
+    samples_per_frame: int
+    R: np.ndarray  # (n, nb, 3, 3) world joint frames
+    o: np.ndarray  # (n, nb, 3)
+    W: np.ndarray  # (n, 5, nb, 6) per-body wrenches of the a, b, gravity x/y/z terms
+    corner_jt: np.ndarray  # (n, nv, 8, 3) J^T of unit world forces at the sole corners
+    contact: np.ndarray  # (n, 4)
+    corners: np.ndarray | None = None  # (n, 8, 3)
+    friction: float = 0.5
+    tau_limit: np.ndarray | None = None  # (nv,) symmetric limits at torque scale 1
+    tau_ref: np.ndarray | None = None
+    lambda_ref: np.ndarray | None = None
+
+    def factors(self, mass_factors) -> np.ndarray:
+        if self.body is not None:
+            return self.body.mass_factor_array(mass_factors)
+        if mass_factors is None:
+            return np.ones(self.tree.n_bodies)
+        if isinstance(mass_factors, dict):
+            out = np.ones(self.tree.n_bodies)
+            for k, v in mass_factors.items():
+                out[self.tree.names.index(k)] = float(v)
+            return out
+        return np.asarray(mass_factors, dtype=float)
+
+    def combine(self, gravity=STANDARD_GRAVITY, mass_factors=None, friction=None, torque_scale=1.0,
+                with_reference=True) -> PathDynamics:
+        """PathDynamics for a gravity vector (m/s^2), segment mass factors ({name: factor} or (nb,)),
+        friction coefficient (default the body's) and a torque-limit scale, without new dynamics."""
+        g = np.asarray(gravity, dtype=float).reshape(3)
+        if not np.all(np.isfinite(g)):
+            raise RetimeError(f"gravity must be three finite numbers, got {gravity}")
+        if not (torque_scale > 0):
+            raise RetimeError(f"torque-limit scale must be positive, got {torque_scale}")
+        f = self.factors(mass_factors)
+        Wc = np.einsum("nkbs,k->nbs", self.W[:, 2:], g)
+        W3 = np.stack([self.W[:, 0], self.W[:, 1], Wc], axis=1)
+        abc = project(self.tree, self.R, self.o, W3, f)
+        mu = self.friction if friction is None else float(friction)
+        n_root = self.tree.n_root
+        hi = np.zeros(self.tree.nv) if self.tau_limit is None else self.tau_limit * torque_scale
+        hi[:n_root] = 0.0
+        return PathDynamics(
+            times=self.times, a=abc[:, 0], b=abc[:, 1], c=abc[:, 2],
+            N=contact_basis(self.corner_jt, mu, self.contact) if self.corner_jt.shape[2] else
+            np.zeros((len(self.times), self.tree.nv, 0)),
+            contact=self.contact, tau_lo=-hi, tau_hi=hi.copy(), n_root=n_root, dof_names=self.tree.dof_names,
+            total_mass=float(np.dot(f, self.tree.mass)), gravity=g, friction=mu, fps=self.fps,
+            samples_per_frame=self.samples_per_frame,
+            tau_ref=self.tau_ref if with_reference else None,
+            lambda_ref=self.lambda_ref if with_reference else None, corners=self.corners)
+
+
+@njit(cache=True)
+def _nnls_gram(G, h, tol):
+    """min 0.5 x'Gx - h'x subject to x >= 0 for positive definite G (Lawson-Hanson active set)."""
+    k = len(h)
+    x = np.zeros(k)
+    passive = np.zeros(k, dtype=np.bool_)
+    for _ in range(3 * k + 10):
+        grad = h - G @ x
+        best = -1
+        top = tol
+        for j in range(k):
+            if not passive[j] and grad[j] > top:
+                top = grad[j]
+                best = j
+        if best < 0:
+            break
+        passive[best] = True
+        for _inner in range(3 * k + 10):
+            idx = np.flatnonzero(passive)
+            s = np.zeros(k)
+            s[idx] = np.linalg.solve(G[idx][:, idx], h[idx])
+            if np.all(s[idx] > 0):
+                x = s
+                break
+            alpha = 1.0
+            for j in idx:
+                if s[j] <= 0 and x[j] - s[j] > 0:
+                    alpha = min(alpha, x[j] / (x[j] - s[j]))
+            x = x + alpha * (s - x)
+            for j in idx:
+                if x[j] <= 1e-12 * (1.0 + abs(s[j])):
+                    passive[j] = False
+                    x[j] = 0.0
+    return x
+
+
+@njit(cache=True)
+def _reference_forces(w, N, weight, ridge, lam):
+    n, nv, K = N.shape
+    for i in prange(n):
+        cols = np.zeros(K, dtype=np.int64)
+        m = 0
+        for k in range(K):
+            for v in range(nv):
+                if N[i, v, k] != 0.0:
+                    cols[m] = k
+                    m += 1
+                    break
+        if m == 0:
+            continue
+        A = np.empty((nv, m))
+        for a in range(m):
+            for v in range(nv):
+                A[v, a] = N[i, v, cols[a]] * weight[v]
+        y = w[i] * weight
+        G = A.T @ A
+        scale = 0.0
+        for a in range(m):
+            scale += G[a, a]
+        scale /= m
+        for a in range(m):
+            G[a, a] += ridge * scale
+        x = _nnls_gram(G, A.T @ y, 1e-10 * scale)
+        for a in range(m):
+            lam[i, cols[a]] = x[a]
+
+
+def reference_forces(w, N, n_root, root_weight=ROOT_WEIGHT, ridge=RIDGE):
+    """Contact forces lambda (n, K) >= 0 that best explain generalized forces w (n, nv): least
+    squares with root rows weighted ``root_weight`` and joint rows 1, plus a ridge of ``ridge``
+    times the mean diagonal of the normal matrix (non-negative least squares, per sample)."""
+    n, nv, K = N.shape
+    lam = np.zeros((n, K))
+    if K == 0:
+        return lam
+    weight = np.ones(nv)
+    weight[:n_root] = root_weight
+    _reference_forces(np.ascontiguousarray(w), np.ascontiguousarray(N), weight, float(ridge), lam)
+    return lam
+
+
+def torque_limits(tree: TreeModel, body: Body | None, tau_ref, margin=None, floor=None) -> np.ndarray:
+    """Symmetric limits (nv,): the body's explicit ones, else margin * max |tau_ref| + floor."""
+    margin = (body.torque_margin if body is not None else 1.5) if margin is None else margin
+    floor = (body.torque_floor if body is not None else 2.0) if floor is None else floor
+    hi = margin * np.abs(tau_ref).max(axis=0) + floor
+    if body is not None:
+        for name, lim in body.torque_limits.items():
+            j = tree.names.index(name)
+            if tree.vidx[j] >= 0:
+                k = tree.vidx[j]
+                hi[k:k + 3] = lim
+    hi[:tree.n_root] = 0.0
+    return hi
+
+
+def _check_rigid(motion):
+    sk = motion.skeleton
+    moved = np.abs(motion.translations[:, 1:] - sk.offsets[None, 1:]).max(axis=(0, 2))
+    scale = max(np.abs(sk.offsets).max(), 1e-9)
+    bad = np.flatnonzero(moved > 1e-6 * scale)
+    if len(bad):
+        j = int(bad[0]) + 1
+        frame = int(np.argmax(np.abs(motion.translations[:, j] - sk.offsets[j]).max(axis=1)))
+        raise RetimeError(f"physics needs fixed bone lengths, but joint {sk.names[j]!r} moves away from its rest "
+                          f"offset (frame {frame}); remove its position channels")
+
+
+def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smoothing=DEFAULT_SMOOTHING,
+                   reference=True) -> DynamicsTerms:
+    """Path dynamics terms of ``motion`` (see the module docstring). ``body``: None (defaults), a
+    :class:`~retime.physics.body.Body` or a TOML body file; ``contacts``: None (detect), a contact
+    file or an (F, 4) bool array; ``reference=False`` skips the reference forces and default limits."""
+    sk = motion.skeleton
+    _check_rigid(motion)
+    spf = int(samples_per_frame)
+    times = sample_times(motion.n_frames, motion.fps, spf)
+    shape = skeleton_tree(sk)
+    path = path_samples(motion.fps, motion.root_positions * sk.meters_per_unit, motion.rotations,
+                        shape.jtype, shape.vidx, shape.nv, times=times, smoothing=smoothing)
+    kin = kinematics(shape, path.root_pos, path.quats, path.qd, path.qdd)
+    R, o = kin.R, kin.o
+    frames = (o[::spf], R[::spf])  # world frames at the motion's frames (of the smoothed path)
+    body = load_body(body, sk, motion, frames)
+    tree = body.tree(sk)
+    W = wrenches(tree, kin)
+    contact = at_samples(load_contacts(contacts, motion, body, frames), motion.fps, times)
+    corner_jt = corner_jacobians(tree, body, sk, R, o)
+    terms = DynamicsTerms(tree=tree, body=body, times=times, fps=motion.fps, samples_per_frame=int(samples_per_frame),
+                          R=R, o=o, W=W, corner_jt=corner_jt, contact=contact,
+                          corners=corner_positions(body, sk, R, o), friction=body.friction)
+    if reference:
+        add_reference(terms)
+    return terms
+
+
+def add_reference(terms: DynamicsTerms) -> None:
+    """Fill terms.tau_ref / lambda_ref / tau_limit from the original timing at standard physics."""
+    d = terms.combine(with_reference=False)
+    w = d.b + d.c
+    lam = reference_forces(w, d.N, d.n_root)
+    terms.lambda_ref = lam
+    terms.tau_ref = w - np.einsum("nvk,nk->nv", d.N, lam)
+    terms.tau_limit = torque_limits(terms.tree, terms.body, terms.tau_ref)
+
+
+def path_dynamics(motion, body=None, gravity=STANDARD_GRAVITY, mass_factors=None, samples_per_frame=1,
+                  contacts=None, smoothing=DEFAULT_SMOOTHING, friction=None, torque_scale=1.0) -> PathDynamics:
+    """One-shot :func:`dynamics_terms` followed by :meth:`DynamicsTerms.combine`."""
+    terms = dynamics_terms(motion, body, samples_per_frame=samples_per_frame, contacts=contacts, smoothing=smoothing)
+    return terms.combine(gravity=gravity, mass_factors=mass_factors, friction=friction, torque_scale=torque_scale)
