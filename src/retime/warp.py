@@ -25,7 +25,8 @@ class TimingCurve:
     """A monotone map from output time to source time, through samples (t_k, s_k).
 
     ``kind="linear"`` interpolates the samples linearly; ``kind="pchip"`` uses a monotone cubic
-    (Fritsch-Carlson), smooth and never overshooting.
+    (Fritsch-Carlson), smooth and never overshooting. ``compose`` gives ``kind="composed"``: evaluated
+    exactly as outer(inner(t)), with ``t``/``s`` holding dense samples of it (for plots and files).
     """
 
     def __init__(self, output_times, source_times, kind="linear"):
@@ -47,6 +48,7 @@ class TimingCurve:
         self.s = np.maximum.accumulate(s)
         self.kind = kind
         self._pchip = PchipInterpolator(self.t, self.s) if kind == "pchip" else None
+        self._parts = None  # (outer, inner) of a composed curve
 
     # -- evaluation ---------------------------------------------------------------------------
     @property
@@ -63,6 +65,9 @@ class TimingCurve:
 
     def __call__(self, t):
         t = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        if self._parts is not None:
+            outer, inner = self._parts
+            return outer(inner(t))
         if self._pchip is None:
             return np.interp(t, self.t, self.s)
         return np.clip(self._pchip(t), self.s[0], self.s[-1])
@@ -70,6 +75,9 @@ class TimingCurve:
     def speed(self, t):
         """Playback speed ds/dt (1 = original speed, 2 = twice as fast)."""
         t = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        if self._parts is not None:
+            outer, inner = self._parts
+            return outer.speed(inner(t)) * inner.speed(t)
         if self._pchip is not None:
             return self._pchip.derivative()(t)
         slopes = np.diff(self.s) / np.diff(self.t)
@@ -79,6 +87,9 @@ class TimingCurve:
     def inverse(self, s):
         """Output time at which source time s plays (the first such time where the curve holds)."""
         s = np.clip(np.asarray(s, dtype=float), self.s[0], self.s[-1])
+        if self._parts is not None:
+            outer, inner = self._parts
+            return inner.inverse(outer.inverse(s))
         if self._pchip is None:
             ts, ss = self.t, self.s
         else:
@@ -87,35 +98,48 @@ class TimingCurve:
         # first index with ss >= s, then interpolate inside that segment
         k = np.clip(np.searchsorted(ss, s, side="left"), 1, len(ss) - 1)
         s0, s1, t0, t1 = ss[k - 1], ss[k], ts[k - 1], ts[k]
-        w = np.where(s1 > s0, (s - s0) / np.where(s1 > s0, s1 - s0, 1.0), 1.0)
-        out = t0 + w * (t1 - t0)
         if self._pchip is not None:
-            out = self._refine_inverse(out, s)
-        return out
+            return self._bisect(t0, t1, s)
+        # s1 == s0 only when s is at (or before) the first sample: the curve holds there from t = 0
+        w = np.where(s1 > s0, (s - s0) / np.where(s1 > s0, s1 - s0, 1.0), 0.0)
+        return t0 + w * (t1 - t0)
 
     def _dense_times(self):
         sub = np.linspace(0.0, 1.0, 33)[:-1]
         inner = (self.t[:-1, None] + sub[None] * np.diff(self.t)[:, None]).ravel()
         return np.append(inner, self.t[-1])
 
-    def _refine_inverse(self, t, s):
-        for _ in range(4):  # Newton steps, guarded against flat stretches
-            v = self.speed(t)
-            step = np.where(v > 1e-9, (self(t) - s) / np.where(v > 1e-9, v, 1.0), 0.0)
-            t = np.clip(t - step, 0.0, self.duration)
-        return t
+    def _bisect(self, lo, hi, s):
+        """The first t in [lo, hi] with curve(t) >= s (curve(lo) < s <= curve(hi)), to rounding."""
+        lo, hi = np.array(lo, dtype=float), np.array(hi, dtype=float)
+        below = self(lo) >= s  # s at or before the bracket's start (s == curve(0))
+        hi = np.where(below, lo, hi)
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            if np.all((mid == lo) | (mid == hi)):
+                break
+            up = self(mid) >= s
+            hi = np.where(up, mid, hi)
+            lo = np.where(up, lo, mid)
+        return hi
 
     def compose(self, inner: "TimingCurve") -> "TimingCurve":
         """The curve t -> self(inner(t)): play ``inner``'s output through ``self``."""
-        if self.kind == "linear" and inner.kind == "linear":
-            knots = np.union1d(inner.t, inner.inverse(self.t[(self.t >= inner.s[0]) & (self.t <= inner.s[-1])]))
+        inside = self.t[(self.t >= inner.s[0]) & (self.t <= inner.s[-1])]
+        knots = np.union1d(inner.t, inner.inverse(inside))
+        if self.kind == "linear" and inner.kind == "linear":  # piecewise linear with these kinks: exact
             return TimingCurve(knots, self(inner(knots)), kind="linear")
-        knots = inner._dense_times() if inner.kind == "pchip" else np.linspace(0, inner.duration, 32 * len(inner.t))
-        return TimingCurve(knots, self(inner(knots)), kind="pchip")
+        dense = np.union1d(knots, inner._dense_times() if inner.kind != "linear"
+                           else np.linspace(0.0, inner.duration, 32 * len(inner.t)))
+        out = TimingCurve(dense, self(inner(dense)), kind="linear")
+        out.kind = "composed"
+        out._parts = (self, inner)
+        return out
 
     # -- frames and files -------------------------------------------------------------------
     def n_frames(self, fps: float) -> int:
-        return int(round(self.duration * fps)) + 1
+        """Output frames at ``fps``: at least two (the first plays the curve's start, the last its end)."""
+        return max(2, int(round(self.duration * fps)) + 1)
 
     def frame_times(self, fps: float) -> np.ndarray:
         """Output frame times 0, 1/fps, ...; the last frame plays the end of the curve.
@@ -129,7 +153,7 @@ class TimingCurve:
     def to_csv(self, path, fps: float) -> None:
         """One row per output frame: ``output_time,source_time`` in seconds."""
         t = self.frame_times(fps)
-        s = self(t)
+        s = np.maximum.accumulate(self(t))
         s[-1] = self.s[-1]
         with atomic_write(path, "w", newline="") as f:
             w = csv.writer(f)
@@ -236,7 +260,7 @@ def check_keytimes(keytimes, source_duration, duration):
 # -- applying curves ----------------------------------------------------------------------------
 def _source_positions(curve, src_fps, n_src, out_fps):
     """Fractional source frame index for each output frame (snapped when within 1e-6 of a frame)."""
-    u = curve(curve.frame_times(out_fps)) * src_fps
+    u = np.maximum.accumulate(curve(curve.frame_times(out_fps))) * src_fps  # no rounding wobble backwards
     r = np.round(u)
     u = np.where(np.abs(u - r) < 1e-6, r, u)
     return np.clip(u, 0.0, n_src - 1)
