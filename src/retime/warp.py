@@ -270,6 +270,9 @@ def _split(u, n):
     i0 = np.minimum(np.floor(u).astype(np.int64), max(n - 2, 0))
     w = u - i0
     i1 = np.minimum(i0 + 1, n - 1)
+    last = w >= 1.0  # the source's last frame: take it as it is
+    i0 = np.where(last, i1, i0)
+    w = np.where(last, 0.0, w)
     return i0, i1, w
 
 
