@@ -1,0 +1,134 @@
+"""Feature vectors of guided time warping (Hsu et al. 2007, section 3.2).
+
+A pose is the vector of joint positions in the root (torso) coordinate frame,
+in metres, prefiltered with a uniform (box) low-pass filter. A candidate
+output frame is a triple of input frames ``(i, j, k)`` that play at three
+consecutive output instants, one output step ``h = 1/fps`` apart. Its feature
+vector is::
+
+    y(i, j, k) = [ w_p * x_j,
+                   w_v * (x_k - x_i) / (2 h),          # velocity, m/s
+                   w_a * (x_k - 2 x_j + x_i) / h**2 ]   # acceleration, m/s^2
+
+and a reference frame ``r`` (with its neighbours ``r - 1`` and ``r + 1``,
+played at the same rate) gets the same vector from ``(r-1, r, r+1)``.
+
+Weights (:class:`FeatureWeights`): ``pose`` is dimensionless, ``velocity`` is
+a time in seconds and ``acceleration`` a time squared, so that all three
+blocks are lengths in metres. The defaults (1, 0.1 s, 0.01 s^2) count a
+velocity error of 1 m/s like a pose error of 10 cm and an acceleration error
+of 10 m/s^2 (about g) like a pose error of 10 cm.
+
+Because ``y`` is linear in ``x_i, x_j, x_k``, every distance between a triple
+feature and a reference feature can be assembled from dot products of single
+frames (see :mod:`retime.guided.score`); nothing here ever has to build the
+``3 * D`` dimensional triple vectors except for checks and the approximate
+(KD-tree) search.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import uniform_filter1d
+
+from retime.errors import RetimeError
+
+
+@dataclass(frozen=True)
+class FeatureWeights:
+    """How pose, velocity and acceleration are weighted in the feature vector.
+
+    ``pose``: weight of joint positions (dimensionless).
+    ``velocity``: seconds; multiplies velocities in m/s.
+    ``acceleration``: seconds squared; multiplies accelerations in m/s^2.
+    """
+
+    pose: float = 1.0
+    velocity: float = 0.1
+    acceleration: float = 0.01
+
+    def __post_init__(self):
+        for name in ("pose", "velocity", "acceleration"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v < 0:
+                raise RetimeError(f"feature weight {name}={v!r} must be a finite number >= 0")
+        if self.pose == 0 and self.velocity == 0 and self.acceleration == 0:
+            raise RetimeError("feature weights are all zero: give pose, velocity or acceleration a weight > 0")
+
+    def coefficients(self, fps: float) -> tuple[float, float, float]:
+        """(alpha, beta, gamma) with y = [alpha x_j, beta (x_k - x_i), gamma (x_k - 2 x_j + x_i)]
+        for frames that play ``1/fps`` seconds apart."""
+        return (float(self.pose), float(self.velocity) * fps / 2.0, float(self.acceleration) * fps * fps)
+
+
+def lowpass(values: np.ndarray, width: int) -> np.ndarray:
+    """Uniform (box) low-pass filter of ``width`` samples along axis 0 (edges repeat the end values)."""
+    values = np.asarray(values, dtype=np.float64)
+    width = int(width)
+    if width <= 1 or values.shape[0] < 2:
+        return values.copy()
+    return uniform_filter1d(values, size=width, axis=0, mode="nearest")
+
+
+def sample(values: np.ndarray, fps: float, times: np.ndarray) -> np.ndarray:
+    """Linear interpolation of frames ``values`` (axis 0, ``fps`` frames per second) at ``times`` (s).
+
+    Times outside the clip are clamped to its ends.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    n = values.shape[0]
+    u = np.clip(np.asarray(times, dtype=np.float64) * fps, 0.0, n - 1)
+    i0 = np.minimum(np.floor(u).astype(np.int64), max(n - 2, 0))
+    if n == 1:
+        return np.repeat(values, len(u), axis=0)
+    w = (u - i0).reshape((-1,) + (1,) * (values.ndim - 1))
+    return values[i0] * (1.0 - w) + values[i0 + 1] * w
+
+
+def positions_in_root_frame(positions: np.ndarray, root_position: np.ndarray, root_quat: np.ndarray) -> np.ndarray:
+    """Joint positions (F, J, 3) expressed in the root's coordinate frame.
+
+    ``root_quat`` is (F, 4), scalar-last (x, y, z, w), the root's global orientation.
+    """
+    from scipy.spatial.transform import Rotation
+
+    positions = np.asarray(positions, dtype=np.float64)
+    rel = positions - np.asarray(root_position, dtype=np.float64)[:, None, :]
+    rot = Rotation.from_quat(np.asarray(root_quat, dtype=np.float64))
+    inv = rot.inv().as_matrix()  # (F, 3, 3)
+    return np.einsum("fab,fjb->fja", inv, rel)
+
+
+def pose_matrix(root_frame_positions: np.ndarray, meters_per_unit: float = 1.0) -> np.ndarray:
+    """Flatten (F, J, 3) root-frame positions to (F, 3 J) in metres, dropping constant columns.
+
+    Columns that never change (the root itself, which is always at the origin of its own
+    frame) carry no information and only cost time.
+    """
+    p = np.asarray(root_frame_positions, dtype=np.float64)
+    x = p.reshape(p.shape[0], -1) * float(meters_per_unit)
+    if x.shape[0] > 1:
+        keep = np.ptp(x, axis=0) > 1e-12
+        if keep.any():
+            x = x[:, keep]
+    return np.ascontiguousarray(x)
+
+
+def reference_features(z: np.ndarray, coeffs: tuple[float, float, float]) -> np.ndarray:
+    """Explicit feature vectors (r - 2, 3 D) of a reference pose sequence ``z`` (r, D)."""
+    z = np.asarray(z, dtype=np.float64)
+    if z.shape[0] < 3:
+        raise RetimeError(f"the reference has {z.shape[0]} frames at the analysis rate; it needs at least 3")
+    a, b, c = coeffs
+    zm, z0, zp = z[:-2], z[1:-1], z[2:]
+    return np.hstack([a * z0, b * (zp - zm), c * (zp - 2 * z0 + zm)])
+
+
+def triple_features(x: np.ndarray, i, j, k, coeffs: tuple[float, float, float]) -> np.ndarray:
+    """Explicit feature vectors of frame triples (arrays of indices i < j < k) of poses ``x`` (n, D)."""
+    x = np.asarray(x, dtype=np.float64)
+    a, b, c = coeffs
+    xi, xj, xk = x[np.asarray(i)], x[np.asarray(j)], x[np.asarray(k)]
+    return np.concatenate([a * xj, b * (xk - xi), c * (xk - 2 * xj + xi)], axis=-1)
