@@ -55,29 +55,9 @@ def bind_loopback(port: int) -> socket.socket:
     return sock
 
 
-def make_server(app, sock):
-    import uvicorn  # noqa: PLC0415
-
-    from ..editor.server import MAX_WS_MESSAGE  # noqa: PLC0415
-
-    config = uvicorn.Config(app, log_level="warning", ws_max_size=MAX_WS_MESSAGE, server_header=False,
-                            timeout_graceful_shutdown=2, ws="websockets-sansio" if _has_sansio() else "auto")
-    return uvicorn.Server(config)
-
-
-def _has_sansio():
-    import uvicorn.config  # noqa: PLC0415
-
-    try:
-        import websockets  # noqa: F401, PLC0415
-    except ImportError:
-        return False
-    return "websockets-sansio" in getattr(uvicorn.config, "WS_PROTOCOLS", {})
-
-
 def run(args):
     try:
-        from ..editor.server import create_app, load_clip  # noqa: PLC0415
+        from ..editor.server import create_app, load_clip, make_uvicorn_server  # noqa: PLC0415
     except ImportError as e:
         raise RetimeError(f"the editor needs extra packages ({e.name} is missing): pip install 'retime[editor]'") from None
     outdir = Path(args.outdir) if args.outdir else Path("retime-edits")
@@ -90,7 +70,7 @@ def run(args):
     sock = bind_loopback(args.port)
     port = sock.getsockname()[1]
     url = f"http://127.0.0.1:{port}/"
-    server = make_server(app, sock)
+    server = make_uvicorn_server(app)
     print(f"retime edit: {clip.name} ({clip.motion.n_frames} frames at {clip.motion.fps:g} Hz) at {url}", flush=True)
     print(f"retime edit: exports go to {outdir.resolve()}; press Ctrl-C to stop", flush=True)
     if not args.no_browser:

@@ -95,10 +95,27 @@ class Clip:
 
 @dataclass
 class Job:
+    """What a method solves: the session's control points, parameters and duration.
+
+    Stateful methods (physics) also get the edit log: ``ops`` lists (version, op) for every edit so
+    far (bounded); an adapter replays those newer than the version it last saw, or resyncs from
+    ``points`` when the log no longer reaches back that far. ``held`` is the point being dragged."""
+
     points: list[ControlPoint]
     params: dict
     duration: float
     cancelled: Callable[[], bool] = lambda: False
+    version: int = 0
+    ops: list = field(default_factory=list)
+    held: int | None = None
+
+    def ops_since(self, version):
+        """Edits after ``version``, or None if the log does not reach back that far."""
+        if version is None:
+            return None
+        if self.ops and self.ops[0][0] > version + 1:
+            return None
+        return [op for v, op in self.ops if v > version]
 
 
 @dataclass
@@ -117,6 +134,7 @@ class Method:
     label = ""
     description = ""
     params: tuple[Param, ...] = ()
+    point_axes = "ts"  # which way the page lets interior control points move: "ts" both, "s" vertically
 
     def __init__(self, clip: Clip):
         self.clip = clip
@@ -233,7 +251,7 @@ def method_catalog(clip: Clip):
     for cls in METHODS.values():
         reason = cls.availability(clip)
         out.append({"name": cls.name, "label": cls.label, "description": cls.description,
-                    "available": reason is None, "reason": reason,
+                    "available": reason is None, "reason": reason, "point_axes": cls.point_axes,
                     "params": [p.to_json() for p in cls.params]})
     return out
 

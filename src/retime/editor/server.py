@@ -143,6 +143,10 @@ class Guard:
         except _BodyTooLarge as e:
             if not started:
                 await _refuse(scope, receive, send, 413, _too_large(e.args[0], self.max_body))
+        except Exception as e:  # already answered as JSON by the app's handler, or answer here
+            if not started:
+                log.exception("internal error")
+                await _refuse(scope, receive, send, 500, f"internal error ({type(e).__name__}); the editor is still running")
 
 
 class _BodyTooLarge(Exception):
@@ -202,6 +206,10 @@ def create_app(clip: Clip, outdir, *, static_dir=STATIC_DIR, allowed_hosts=LOOPB
     @app.exception_handler(RetimeError)
     async def _retime_error(request, exc):
         return JSONResponse({"error": str(exc)}, status_code=400)
+
+    @app.exception_handler(_BodyTooLarge)
+    async def _too_large_error(request, exc):
+        return JSONResponse({"error": _too_large(exc.args[0], max_body)}, status_code=413)
 
     @app.exception_handler(StarletteHTTPException)
     async def _http_error(request, exc):
@@ -410,3 +418,46 @@ class LiveLoop:
                 if item["type"] == "error" or session.version == snap.version:
                     await self.send(item)
             await future
+
+
+def make_uvicorn_server(app):
+    """A uvicorn server for the app, with the websocket message size bounded."""
+    import uvicorn  # noqa: PLC0415
+
+    ws = "websockets-sansio" if "websockets-sansio" in getattr(uvicorn.config, "WS_PROTOCOLS", {}) else "auto"
+    config = uvicorn.Config(app, log_level="warning", ws_max_size=MAX_WS_MESSAGE, ws=ws, server_header=False,
+                            timeout_graceful_shutdown=2)
+    return uvicorn.Server(config)
+
+
+class BackgroundServer:
+    """Run the editor on a free loopback port in a thread (tests, benchmarks, notebooks).
+
+    >>> with BackgroundServer(create_app(clip, outdir)) as url: ...
+    """
+
+    def __init__(self, app, port=0):
+        import socket  # noqa: PLC0415
+        import threading  # noqa: PLC0415
+
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.sock.bind(("127.0.0.1", port))
+        self.sock.listen(256)
+        self.url = f"http://127.0.0.1:{self.sock.getsockname()[1]}"
+        self.server = make_uvicorn_server(app)
+        self.thread = threading.Thread(target=self.server.run, kwargs={"sockets": [self.sock]}, daemon=True)
+
+    def __enter__(self):
+        self.thread.start()
+        deadline = time.monotonic() + 10
+        while not self.server.started:
+            if time.monotonic() > deadline or not self.thread.is_alive():
+                raise RuntimeError("the editor server did not start")
+            time.sleep(0.01)
+        return self.url
+
+    def __exit__(self, *exc):
+        self.server.should_exit = True
+        self.thread.join(timeout=10)
+        self.sock.close()

@@ -23,6 +23,8 @@ from .methods import METHODS, Clip, ControlPoint, Job, Solution, check_params, d
 
 MAX_POINTS = 200
 MAX_OPS = 64  # edits in one message
+OP_LOG = 4096  # edits remembered for stateful methods to replay (older: they resync from the points)
+S_GAP = 1e-3  # seconds: neighbouring control points' source times differ at least this much
 MIN_SPEED, MAX_SPEED = 1 / 20, 20.0  # the duration may change by this factor at the most
 
 
@@ -33,6 +35,8 @@ class Snapshot:
     points: list[ControlPoint]
     params: dict
     duration: float
+    ops: list  # every (version, op) applied so far that a stateful method may still need to replay
+    held: int | None = None  # the control point the user is holding (dragging), if any
 
 
 class Session:
@@ -54,6 +58,8 @@ class Session:
         self.lock = threading.RLock()
         self.solve_lock = threading.Lock()  # one solve at a time per session (adapters keep state)
         self.last_used = time.monotonic()
+        self.op_log: list[tuple[int, dict]] = []  # (version, op) for stateful adapters; bounded
+        self.held = None
 
     # -- edits ----------------------------------------------------------------------------------
     @property
@@ -73,10 +79,17 @@ class Session:
         with self.lock:
             points = [ControlPoint(p.t, p.s, p.locked) for p in self.points]
             method, params = self.method, {k: dict(v) for k, v in self.params.items()}
+            held = self.held
             for op in ops:
                 method = self._apply_one(op, points, method, params)
-            self.points, self.method, self.params = points, method, params
+                if op["op"] == "move":
+                    held = op["index"] if op.get("hold") else None
+                elif op["op"] in ("release", "add", "remove", "reset", "duration", "method"):
+                    held = None
+            self.points, self.method, self.params, self.held = points, method, params, held
             self.version += 1
+            self.op_log.extend((self.version, dict(op)) for op in ops)
+            del self.op_log[:-OP_LOG]
             self.last_used = time.monotonic()
             return self.version
 
@@ -86,7 +99,8 @@ class Session:
         kind = op["op"]
         if kind == "move":
             i = self._index(op, points)
-            self._move(points, i, _num(op, "t"), _num(op, "s"))
+            t = _num(op, "t") if METHODS[method].point_axes == "ts" or i == len(points) - 1 else points[i].t
+            self._move(points, i, t, _num(op, "s"))
         elif kind == "add":
             self._add(points, _num(op, "t"), _num(op, "s"), bool(op.get("locked", False)))
         elif kind == "remove":
@@ -113,6 +127,8 @@ class Session:
             params[name].update(checked)
         elif kind == "duration":
             self._set_duration(points, _num(op, "duration"))
+        elif kind == "release":
+            pass  # the user let go of a dragged point (stateful methods may move it again)
         elif kind == "reset":
             S = self.source_duration
             points[:] = [ControlPoint(0.0, 0.0, True), ControlPoint(S, S, True)]
@@ -140,11 +156,11 @@ class Session:
             self._set_duration(points, t, scale_inner=False)
             return
         lo_t, hi_t = points[i - 1].t + gap, points[i + 1].t - gap
-        if lo_t > hi_t:
+        lo_s, hi_s = points[i - 1].s + S_GAP, points[i + 1].s - S_GAP
+        if lo_t > hi_t or lo_s > hi_s:
             return
         points[i].t = float(np.clip(t, lo_t, hi_t))
-        points[i].s = float(np.clip(s, points[i - 1].s, points[i + 1].s))
-        points[i].s = float(np.clip(points[i].s, 0.0, S))
+        points[i].s = float(np.clip(s, lo_s, hi_s))
 
     def _add(self, points, t, s, locked):
         if len(points) >= MAX_POINTS:
@@ -155,7 +171,9 @@ class Session:
         k = int(np.searchsorted([p.t for p in points], t))
         if t - points[k - 1].t < gap or points[k].t - t < gap:
             raise RetimeError("too close to another control point (less than one frame apart)")
-        s = float(np.clip(s, points[k - 1].s, points[k].s))
+        if points[k].s - points[k - 1].s < 2 * S_GAP:
+            raise RetimeError("no room between the neighbouring control points' source times")
+        s = float(np.clip(s, points[k - 1].s + S_GAP, points[k].s - S_GAP))
         points.insert(k, ControlPoint(float(t), s, locked))
 
     def _set_duration(self, points, duration, scale_inner=True):
@@ -188,7 +206,7 @@ class Session:
     def snapshot(self) -> Snapshot:
         with self.lock:
             return Snapshot(self.version, self.method, [ControlPoint(p.t, p.s, p.locked) for p in self.points],
-                            dict(self.params[self.method]), self.duration)
+                            dict(self.params[self.method]), self.duration, list(self.op_log), self.held)
 
     def adapter(self, name):
         if name not in self.adapters:
@@ -202,7 +220,7 @@ class Session:
             if stale():
                 return
             adapter = self.adapter(snap.method)
-            job = Job(snap.points, snap.params, snap.duration, stale)
+            job = Job(snap.points, snap.params, snap.duration, stale, snap.version, snap.ops, snap.held)
             try:
                 for sol in adapter.solve(job):
                     with self.lock:
