@@ -280,9 +280,9 @@ def find_asf(amc_path) -> Path:
 
 def read_amc(path, asf=None, fps=None) -> Motion:
     """Read an AMC motion with its ASF skeleton (found beside it unless given)."""
+    text = read_text(path)  # first, so that a missing motion file is named as such
     asf_path = Path(asf) if asf is not None else find_asf(path)
     skel_info = read_asf(asf_path)
-    text = read_text(path)
     frames_dof = _parse_amc(path, text, skel_info)
     motion = amc_to_motion(skel_info, frames_dof, CMU_FPS if fps is None else fps)
     return motion

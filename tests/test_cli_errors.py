@@ -1,0 +1,269 @@
+"""Bad input: one clear line naming the file and the line or frame, exit code 2, no traceback, nothing
+written, inputs never overwritten."""
+import hashlib
+import re
+import shutil
+
+import pytest
+
+from retime.cli import main
+from retime.data import bundled_path
+from retime.errors import RetimeError
+from retime.io_util import atomic_write
+
+
+@pytest.fixture
+def clip(tmp_path):
+    """Copies of the bundled 16.asf, 16_15.amc and 16_15.bvh in a fresh folder."""
+    for name in ("16.asf", "16_15.amc", "16_15.bvh"):
+        shutil.copy(bundled_path(name), tmp_path / name)
+    return tmp_path
+
+
+def lines_of(path):
+    return path.read_text().splitlines()
+
+
+def write_lines(path, lines):
+    path.write_text("\n".join(lines) + "\n")
+
+
+def frame_block(lines, number):
+    """Index of the AMC line holding frame ``number``."""
+    return lines.index(str(number))
+
+
+def fails_cleanly(capsys, argv, *expect, out=None, line=None):
+    """Run the CLI; check exit 2, a single stderr line holding every string in ``expect``, no output."""
+    folder = out.parent if out is not None else None
+    before = set(folder.iterdir()) if folder else set()
+    try:
+        rc = main([str(a) for a in argv])
+    except SystemExit as e:  # argparse's own errors
+        rc = e.code
+    captured = capsys.readouterr()
+    err = captured.err
+    assert rc == 2, err
+    assert "Traceback" not in err and captured.out == ""
+    assert len(err.strip().splitlines()) == 1, err
+    for text in expect:
+        assert str(text) in err, (text, err)
+    if line is not None:
+        assert re.search(rf":{line}: ", err), (line, err)
+    if out is not None:
+        assert not out.exists()
+        assert set(folder.iterdir()) == before  # no temporary file left either
+    return err
+
+
+def linear(src, out, *more):
+    return ["linear", src, "-o", out, "--scale", "0.5", *more]
+
+
+# -- motion files ---------------------------------------------------------------------------------
+def test_truncated_bvh_data(capsys, clip):
+    path = clip / "16_15.bvh"
+    lines = lines_of(path)
+    write_lines(path, lines[:-100])
+    err = fails_cleanly(capsys, linear(path, clip / "o.bvh"), path, "371 of 471 frames", "truncated",
+                        out=clip / "o.bvh", line=len(lines) - 100)
+
+
+def test_truncated_bvh_mid_line(capsys, clip):
+    path = clip / "16_15.bvh"
+    text = path.read_text()
+    path.write_text(text[: len(text) - 40])  # the last frame loses its last values
+    fails_cleanly(capsys, linear(path, clip / "o.bvh"), path, "frame 471 has", "channels",
+                  out=clip / "o.bvh", line=len(lines_of(path)))
+
+
+def test_truncated_bvh_hierarchy(capsys, clip):
+    path = clip / "16_15.bvh"
+    write_lines(path, lines_of(path)[:60])
+    fails_cleanly(capsys, linear(path, clip / "o.bvh"), path, "truncated", out=clip / "o.bvh", line=60)
+
+
+@pytest.mark.parametrize("value,what", [("nan", "not finite"), ("abc", "not a number"), ("1e999", "not finite")])
+def test_bad_bvh_value(capsys, clip, value, what):
+    path = clip / "16_15.bvh"
+    lines = lines_of(path)
+    k = lines.index("MOTION") + 3 + 9  # the 10th frame
+    tokens = lines[k].split()
+    tokens[5] = value
+    lines[k] = " ".join(tokens)
+    write_lines(path, lines)
+    fails_cleanly(capsys, linear(path, clip / "o.bvh"), path, "frame 10", what, out=clip / "o.bvh", line=k + 1)
+
+
+def test_bvh_with_zero_frames(capsys, clip):
+    path = clip / "16_15.bvh"
+    lines = lines_of(path)
+    k = lines.index("MOTION")
+    write_lines(path, lines[:k + 1] + ["Frames: 0", "Frame Time: 0.00833333"])
+    fails_cleanly(capsys, linear(path, clip / "o.bvh"), path, "zero frames", out=clip / "o.bvh", line=k + 2)
+
+
+def test_bvh_with_bad_frame_time(capsys, clip):
+    path = clip / "16_15.bvh"
+    lines = lines_of(path)
+    k = lines.index("MOTION")
+    lines[k + 2] = "Frame Time: 0"
+    write_lines(path, lines)
+    fails_cleanly(capsys, linear(path, clip / "o.bvh"), path, "Frame Time", out=clip / "o.bvh", line=k + 3)
+
+
+def test_truncated_amc(capsys, clip):
+    path = clip / "16_15.amc"
+    lines = lines_of(path)
+    k = frame_block(lines, 300)
+    write_lines(path, lines[: k + 12])  # frame 300 stops after 11 bones
+    fails_cleanly(capsys, linear(path, clip / "o.bvh"), path, "frame 300", "missing bone", "truncated",
+                  out=clip / "o.bvh", line=k + 12)
+
+
+def test_amc_frame_missing_a_bone(capsys, clip):
+    path = clip / "16_15.amc"
+    lines = lines_of(path)
+    k = frame_block(lines, 10)
+    bone = next(i for i in range(k, k + 32) if lines[i].startswith("lfemur "))
+    del lines[bone]
+    write_lines(path, lines)
+    fails_cleanly(capsys, linear(path, clip / "o.bvh"), path, "frame 10", "missing bone(s) lfemur", out=clip / "o.bvh")
+
+
+def test_amc_unknown_bone(capsys, clip):
+    path = clip / "16_15.amc"
+    lines = lines_of(path)
+    k = frame_block(lines, 5)
+    bone = next(i for i in range(k, k + 32) if lines[i].startswith("rtibia "))
+    lines[bone] = lines[bone].replace("rtibia", "rshin")
+    write_lines(path, lines)
+    fails_cleanly(capsys, linear(path, clip / "o.bvh"), path, "frame 5", "unknown bone 'rshin'", "16.asf",
+                  out=clip / "o.bvh", line=bone + 1)
+
+
+@pytest.mark.parametrize("value,what", [("nan", "not finite"), ("NaN", "not finite"), ("x1", "not a number"),
+                                        ("inf", "not finite")])
+def test_bad_amc_value(capsys, clip, value, what):
+    path = clip / "16_15.amc"
+    lines = lines_of(path)
+    k = frame_block(lines, 42)
+    lines[k + 1] = lines[k + 1].rsplit(" ", 1)[0] + " " + value  # root's last value
+    write_lines(path, lines)
+    fails_cleanly(capsys, linear(path, clip / "o.bvh"), path, "frame 42", "'root'", what, out=clip / "o.bvh", line=k + 2)
+
+
+def test_amc_bone_with_too_many_values(capsys, clip):
+    path = clip / "16_15.amc"
+    lines = lines_of(path)
+    k = frame_block(lines, 7)
+    lines[k + 2] += " 1.5"
+    write_lines(path, lines)
+    fails_cleanly(capsys, linear(path, clip / "o.bvh"), path, "frame 7", "has 4 values", "3 dof",
+                  out=clip / "o.bvh", line=k + 3)
+
+
+def test_amc_with_zero_frames(capsys, clip):
+    path = clip / "16_15.amc"
+    write_lines(path, lines_of(path)[:3])
+    fails_cleanly(capsys, linear(path, clip / "o.bvh"), path, "zero frames", out=clip / "o.bvh")
+
+
+def test_missing_skeleton_file(capsys, clip):
+    (clip / "16.asf").unlink()
+    path = clip / "16_15.amc"
+    fails_cleanly(capsys, linear(path, clip / "o.bvh"), path, "no skeleton file", "--asf", out=clip / "o.bvh")
+
+
+def test_asf_given_but_missing(capsys, clip):
+    fails_cleanly(capsys, linear(clip / "16_15.amc", clip / "o.bvh", "--asf", clip / "nope.asf"),
+                  clip / "nope.asf", "not found", out=clip / "o.bvh")
+
+
+def test_truncated_asf(capsys, clip):
+    path = clip / "16.asf"
+    lines = lines_of(path)
+    write_lines(path, lines[: len(lines) // 2])
+    fails_cleanly(capsys, linear(clip / "16_15.amc", clip / "o.bvh"), path, "truncated", out=clip / "o.bvh")
+
+
+def test_missing_motion_file(capsys, clip):
+    fails_cleanly(capsys, linear(clip / "nope.bvh", clip / "o.bvh"), clip / "nope.bvh", "not found", out=clip / "o.bvh")
+    fails_cleanly(capsys, linear(clip / "16_99.amc", clip / "o.bvh"), clip / "16_99.amc", "not found", out=clip / "o.bvh")
+    fails_cleanly(capsys, linear(clip, clip / "o.bvh"), "unknown motion format", out=clip / "o.bvh")
+    (clip / "d.bvh").mkdir()
+    fails_cleanly(capsys, linear(clip / "d.bvh", clip / "o.bvh"), "folder", out=clip / "o.bvh")
+
+
+def test_not_a_motion_file(capsys, clip):
+    path = clip / "notes.txt"
+    path.write_text("hello")
+    fails_cleanly(capsys, linear(path, clip / "o.bvh"), path, "unknown motion format", out=clip / "o.bvh")
+    bvh = clip / "fake.bvh"
+    bvh.write_bytes(b"\x00\x01binary")
+    fails_cleanly(capsys, linear(bvh, clip / "o.bvh"), bvh, "binary", out=clip / "o.bvh")
+
+
+# -- requests ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("keys,what", [
+    (["--keytime", "1=2", "--keytime", "2=1"], "out of order"),
+    (["--keytime", "10=1"], "outside the clip"),
+    (["--keytime=-1=1"], "outside the clip"),
+    (["--keytime", "1=100"], "outside the output"),
+    (["--keytime", "1.5"], "SRC=DST"),
+    (["--keytime", "a=b"], "SRC=DST"),
+])
+def test_bad_keytimes(capsys, clip, keys, what):
+    out = clip / "o.bvh"
+    fails_cleanly(capsys, ["linear", clip / "16_15.amc", "-o", out, "--duration", "3", *keys], what, out=out)
+
+
+@pytest.mark.parametrize("flag,value", [("--duration", "0"), ("--duration", "-2"), ("--scale", "0"),
+                                        ("--scale", "nan"), ("--duration", "abc"), ("--fps", "0")])
+def test_bad_numbers(capsys, clip, flag, value):
+    out = clip / "o.bvh"
+    fails_cleanly(capsys, ["linear", clip / "16_15.amc", "-o", out, flag, value, *(["--scale", "2"] if flag == "--fps" else [])],
+                  flag, out=out)
+
+
+def test_never_overwrites_the_input(capsys, clip):
+    path = clip / "16_15.bvh"
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    fails_cleanly(capsys, linear(path, path), "overwrite the input")
+    fails_cleanly(capsys, ["convert", path, path], "overwrite the input")
+    fails_cleanly(capsys, ["linear", path, "-o", clip / "o.bvh", "--scale", "2", "--warp", clip / "o.bvh"], "overwrite",
+                  out=clip / "x.bvh")
+    alias = clip / "sub" / ".." / "16_15.bvh"
+    (clip / "sub").mkdir()
+    fails_cleanly(capsys, linear(path, alias), "overwrite the input")
+    assert hashlib.sha256(path.read_bytes()).hexdigest() == digest
+
+
+def test_output_must_be_bvh_in_an_existing_folder(capsys, clip):
+    fails_cleanly(capsys, linear(clip / "16_15.amc", clip / "o.txt"), "o.txt", ".bvh", out=clip / "o.txt")
+    fails_cleanly(capsys, linear(clip / "16_15.amc", clip / "nowhere" / "o.bvh"), "does not exist")
+    fails_cleanly(capsys, ["linear", clip / "16_15.amc", "-o", clip / "o.bvh", "--scale", "2", "--warp", clip / "w.txt"],
+                  ".csv", out=clip / "o.bvh")
+    (clip / "dir.bvh").mkdir()
+    fails_cleanly(capsys, linear(clip / "16_15.amc", clip / "dir.bvh"), "folder")
+
+
+def test_a_failed_write_leaves_nothing_and_keeps_the_old_file(tmp_path):
+    target = tmp_path / "out.bvh"
+    with pytest.raises(RuntimeError):
+        with atomic_write(target) as f:
+            f.write("half a file")
+            raise RuntimeError("disk full")
+    assert list(tmp_path.iterdir()) == []
+    target.write_text("old")
+    with pytest.raises(RuntimeError):
+        with atomic_write(target) as f:
+            f.write("new")
+            raise RuntimeError("disk full")
+    assert target.read_text() == "old" and list(tmp_path.iterdir()) == [target]
+    with atomic_write(target) as f:
+        f.write("new")
+    assert target.read_text() == "new" and list(tmp_path.iterdir()) == [target]
+    with pytest.raises(RetimeError, match="does not exist"):
+        with atomic_write(tmp_path / "no" / "x.bvh") as f:
+            pass
