@@ -21,8 +21,9 @@ Defaults (every value can be overridden by a TOML body file, see :func:`read_bod
   0.41, shank 0.45) and the inertia is that of a rod with de Leva's radii of gyration (transverse,
   longitudinal; e.g. thigh 0.329, 0.149 of the bone length). A bone of zero length gets a sphere of
   radius 0.1 m.
-* **Soles**: one rectangle per foot, laid out in the frame of the motion where the foot is most
-  planted (or in the rest pose without a motion), with y up: the sole plane lies ``SOLE_PAD`` = 2 cm below the lower of the toe joint and the toe tip; heel
+* **Soles**: one rectangle per foot, with "up" the world's y axis as the foot sees it when most
+  planted in the motion (averaged over the 5 % most planted frames; the rest pose without a
+  motion): the sole plane lies ``SOLE_PAD`` = 2 cm below the lower of the toe joint and the toe tip; heel
   corners (on the foot joint's body) are 0.3 foot-lengths behind the ankle, 0.26 foot-lengths apart;
   toe corners (on the toe joint's body, or the foot's if there is none) are halfway from the toe
   joint to the tip, 0.38 foot-lengths apart (foot length = heel to tip).
@@ -360,57 +361,75 @@ def world_frames(motion):
     return pos * motion.skeleton.meters_per_unit, quat_to_matrix(rot)
 
 
-def stance_frame(frames, fps, foot: int, toe: int, toe_end=None) -> int:
-    """The frame where a foot looks most planted: its ankle and toe tip both near their lowest and
-    both slow (score = height above the clip minimum + 0.05 s x speed, summed). ``frames`` are world
-    frames (positions (F, J, 3), rotations (F, J, 3, 3)); ``toe_end`` the toe tip in the toe frame."""
-    pos, R = frames
-    pts = [pos[:, foot]]
-    if toe_end is not None and np.linalg.norm(toe_end) > 1e-6:
-        pts.append(pos[:, toe] + R[:, toe] @ toe_end)
-    score = np.zeros(len(pos))
-    for x in pts:
-        h = x[:, 1] - x[:, 1].min()
-        speed = np.linalg.norm(np.gradient(x, axis=0), axis=1) * fps if len(pos) > 1 else 0.0
-        score += h + 0.05 * speed
-    return int(np.argmin(score))
+def stance_frames(frames, fps, foot: int, toe: int, share=0.05) -> np.ndarray:
+    """Indices of the frames where a foot looks most planted: the ``share`` (5 %, at least one) with
+    the lowest score = ankle height + toe-joint height above their clip minimums + 0.05 s x their
+    speed (averaged over 0.2 s). ``frames`` are world frames (positions (F, J, 3), rotations)."""
+    pos = frames[0]
+    F = len(pos)
+    score = np.zeros(F)
+    width = max(1, int(round(0.2 * fps)))
+    kernel = np.ones(width) / width
+    for j in {foot, toe}:
+        x = pos[:, j]
+        speed = np.linalg.norm(np.gradient(x, axis=0), axis=1) * fps if F > 1 else np.zeros(F)
+        score += x[:, 1] - x[:, 1].min() + 0.05 * np.convolve(speed, kernel, mode="same")
+    k = max(1, int(round(share * F)))
+    return np.argsort(score, kind="stable")[:k]
+
+
+def _mean_rotation(Rs):
+    U, _, Vt = np.linalg.svd(np.mean(Rs, axis=0))
+    R = U @ Vt
+    if np.linalg.det(R) < 0:
+        U[:, -1] *= -1
+        R = U @ Vt
+    return R
 
 
 def default_foot(skeleton, side, foot, toe, frames=None, fps=None) -> Foot:
-    """Sole corners of one foot (see the module docstring). The foot's geometry is read in the rest
-    pose, or, given the motion's world frames (see :func:`world_frames`) and frame rate, in the frame
-    where the foot is most planted (:func:`stance_frame`), so skeletons whose rest pose points the
-    feet down still get a sole under the foot."""
+    """Sole corners of one foot (see the module docstring), built in the foot joint's frame. "Up"
+    is the world y axis seen from the foot in the rest pose or, given the motion's world frames (see
+    :func:`world_frames`) and frame rate, averaged over the frames where the foot is most planted
+    (:func:`stance_frames`), so skeletons whose rest pose points the feet down still get a sole
+    under the foot; the toe joint's rotation relative to the foot is averaged the same way."""
     ends = bone_ends(skeleton)
+    off = skeleton.offsets * skeleton.meters_per_unit
     if frames is None:
-        pos = rest_positions(skeleton)
-        R = np.tile(np.eye(3), (skeleton.n_joints, 1, 1))
+        up, R_rel = np.array([0.0, 1.0, 0.0]), np.eye(3)
     else:
-        f = stance_frame(frames, fps, foot, toe, ends[toe] if toe != foot else None)
-        pos, R = frames[0][f], frames[1][f]
-    A = pos[foot]
-    B = pos[toe] if toe != foot else A + R[foot] @ ends[foot]
-    T = B + R[toe] @ ends[toe] if toe != foot else B
+        idx = stance_frames(frames, fps, foot, toe)
+        R = frames[1]
+        up = np.mean(R[idx, foot, 1, :], axis=0)  # world y in the foot frame = row 1 of R
+        up /= np.linalg.norm(up)
+        R_rel = np.eye(3) if toe == foot else _mean_rotation(np.einsum("nji,njk->nik", R[idx, foot], R[idx, toe]))
+    # in the foot frame: ankle A at the origin, toe joint B, toe tip T
+    A = np.zeros(3)
+    B = off[toe] if toe != foot else ends[foot]
+    T = B + R_rel @ ends[toe] if toe != foot else B
     if np.linalg.norm(T - B) < 1e-6:  # no toe bone: extend the foot by 40 %
         T = B + 0.4 * (B - A)
-    fwd = (T - A) * np.array([1.0, 0.0, 1.0])
+    fwd = T - A - np.dot(T - A, up) * up
     reach = float(np.linalg.norm(fwd))
     if reach < 1e-3:
-        raise RetimeError(f"the {side} foot ({skeleton.names[foot]}) has no horizontal length; "
+        raise RetimeError(f"the {side} foot ({skeleton.names[foot]}) has no length along the ground; "
                           "give its sole corners in a body file")
     fwd /= reach
-    lat = np.cross(fwd, [0.0, 1.0, 0.0])
+    lat = np.cross(fwd, up)
     heel_back = 0.3 * reach
     length = reach + heel_back
-    y = min(B[1], T[1]) - SOLE_PAD
-    heel_c = A - heel_back * fwd
-    toe_c = B + 0.5 * (T - B)
+    sole = min(np.dot(B, up), np.dot(T, up)) - SOLE_PAD  # height of the sole plane along up
+
+    def on_sole(x):
+        return x + (sole - np.dot(x, up)) * up
+
+    heel_c = on_sole(A - heel_back * fwd)
+    toe_c = on_sole(B + 0.5 * (T - B))
     heel = np.array([heel_c + s * 0.13 * length * lat for s in (1, -1)])
     toes = np.array([toe_c + s * 0.19 * length * lat for s in (1, -1)])
-    heel[:, 1] = y
-    toes[:, 1] = y
-    return Foot(side=side, joint=skeleton.names[foot], toe_joint=skeleton.names[toe],
-                heel=(heel - A) @ R[foot], toe=(toes - pos[toe]) @ R[toe])
+    if toe != foot:
+        toes = (toes - B) @ R_rel  # into the toe joint's frame
+    return Foot(side=side, joint=skeleton.names[foot], toe_joint=skeleton.names[toe], heel=heel, toe=toes)
 
 
 # ---------------------------------------------------------------------------------------------

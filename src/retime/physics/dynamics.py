@@ -49,7 +49,7 @@ from ..errors import RetimeError
 from .body import Body, load_body, skeleton_tree
 from .contacts import CONTACT_POINTS, at_samples, contact_basis, corner_jacobians, corner_positions, load_contacts
 from .path import path_samples, sample_times
-from .tree import TreeModel, kinematics, project, wrenches
+from .tree import SPHERICAL, TreeModel, kinematics, project, wrenches
 
 STANDARD_GRAVITY = (0.0, -9.81, 0.0)
 DEFAULT_SMOOTHING = 0.025  # seconds
@@ -118,6 +118,17 @@ class DynamicsTerms:
     tau_limit: np.ndarray | None = None  # (nv,) symmetric limits at torque scale 1
     tau_ref: np.ndarray | None = None
     lambda_ref: np.ndarray | None = None
+
+    def joint_torque_limits(self, torque_scale=1.0) -> dict[str, np.ndarray]:
+        """{joint: (3,) symmetric limit, N m} of every ball joint, e.g. for ``write_body``."""
+        if self.tau_limit is None:
+            return {}
+        out = {}
+        for j, name in enumerate(self.tree.names):
+            if self.tree.jtype[j] == SPHERICAL:
+                k = self.tree.vidx[j]
+                out[name] = self.tau_limit[k:k + 3] * torque_scale
+        return out
 
     def factors(self, mass_factors) -> np.ndarray:
         if self.body is not None:
