@@ -70,7 +70,7 @@ function send(ops, eventTime = performance.now()) {
   } else {
     // no live connection: fall back to plain HTTP
     api(`/api/session/${state.session}/edit`, { method: "POST", body: { seq, ops } })
-      .then((sol) => onSolution(sol)).catch((e) => { toast(e.message); refresh(); });
+      .then((sol) => onSolution(sol)).catch((e) => { toast(e.message); restoreInputs(); refresh(); });
   }
   return seq;
 }
@@ -103,6 +103,7 @@ function connect() {
     if (msg.type === "solution") onSolution(msg);
     else if (msg.type === "error") {
       toast(msg.message, "error", "Could not apply the edit");
+      restoreInputs();
       if (/no such session/.test(msg.message)) restart();
     }
   };
@@ -119,6 +120,7 @@ function onSolution(sol) {
   if (sol.seq != null) state.lastSolvedSeq = sol.seq;
   state.solution = sol;
   state.method = sol.method;
+  if (sol.params) state.params[sol.method] = { ...(state.params[sol.method] || {}), ...sol.params };
   editor.set(sol.points, sol.curve, sol.source_duration, state.clip.fps);
   speedPlot.set(sol.curve, sol.speed, sol.feasibility);
   $("feas-legend").hidden = !sol.feasibility;
@@ -140,6 +142,15 @@ function onSolution(sol) {
       }, 0));
     }
   }
+}
+
+// after a refused edit, put the fields back to what the server has
+function restoreInputs() {
+  if (!state.solution) return;
+  if (document.activeElement && document.activeElement.tagName === "INPUT") document.activeElement.blur();
+  $("duration").value = state.solution.duration.toFixed(3);
+  builtFor = null; // rebuild the parameter fields from the server's values
+  updatePanel();
 }
 
 function showStats(ms, sol) {

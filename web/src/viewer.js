@@ -25,7 +25,7 @@ export class Viewer {
     container.appendChild(this.renderer.domElement);
 
     const scene = (this.scene = new THREE.Scene());
-    scene.fog = new THREE.Fog(0x151b22, 12, 30);
+    scene.fog = q.lite ? new THREE.Fog(0x151b22, 5, 14) : new THREE.Fog(0x151b22, 10, 26);
     this.camera = new THREE.PerspectiveCamera(40, 1, 0.05, 200);
     this.controls = new OrbitControls(this.camera, this.renderer.domElement);
     this.controls.enableDamping = true;
@@ -47,7 +47,8 @@ export class Viewer {
     ground.position.y = this.floor;
     ground.receiveShadow = true;
     scene.add(ground);
-    const grid = new THREE.GridHelper(200, 200, 0x2d3844, 0x232b35);
+    // a 1 m grid around the characters (it moves with them in whole metres, so it looks fixed)
+    const grid = (this.grid = new THREE.GridHelper(30, 30, 0x2d3844, 0x262f3a));
     grid.position.y = this.floor + 0.001;
     scene.add(grid);
 
@@ -163,6 +164,8 @@ export class Viewer {
       this.controls.target.add(delta);
       this.lastFocus = focus;
     }
+    this.grid.position.x = Math.round(this.controls.target.x);
+    this.grid.position.z = Math.round(this.controls.target.z);
     this.sun.position.set(this.controls.target.x + 3, 7, this.controls.target.z + 4);
     this.sun.target.position.copy(this.controls.target);
     this._rendering = true;

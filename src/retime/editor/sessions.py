@@ -271,6 +271,7 @@ class Session:
         out = {
             "type": "solution", "seq": seq, "version": snap.version if snap else self.version,
             "final": sol.final, "method": snap.method if snap else self.method,
+            "params": dict(snap.params) if snap else dict(self.params[self.method]),
             "duration": curve.duration, "source_duration": curve.source_duration,
             "points": [p.to_json() for p in points],
             "curve": {"t": _round(t), "s": _round(s)},

@@ -1,0 +1,215 @@
+"""The editor in headless Chromium (Playwright): load a clip, drag, add, lock, export; latency.
+
+Skips with a reason when Chromium or Playwright is missing, unless the env var CI is set (then it
+fails: .ci/run installs them). Screenshots go to $RETIME_EDITOR_SHOTS (default: pytest's tmp dir).
+"""
+from __future__ import annotations
+
+import io
+import os
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("fastapi")
+pytest.importorskip("uvicorn")
+
+from retime.data import bundled_path  # noqa: E402
+
+from _editor_support import CHROMIUM_ARGS, require_browser, wait_js  # noqa: E402
+
+CLIP = "16_16.amc"  # a 510-frame walk: the "500-frame clip" of the latency target
+
+
+@pytest.fixture(scope="module")
+def shots(tmp_path_factory):
+    d = Path(os.environ.get("RETIME_EDITOR_SHOTS") or tmp_path_factory.mktemp("shots"))
+    d.mkdir(parents=True, exist_ok=True)
+    return d
+
+
+@pytest.fixture(scope="module")
+def browser():
+    path = require_browser()
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=path, args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    from retime.editor.server import BackgroundServer, create_app, load_clip
+
+    outdir = tmp_path_factory.mktemp("edits")
+    clip = load_clip(bundled_path(CLIP))
+    with BackgroundServer(create_app(clip, outdir)) as url:
+        yield url, outdir, clip
+
+
+def open_page(browser, url, errors):
+    page = browser.new_page(viewport={"width": 1400, "height": 900}, accept_downloads=True)
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.goto(url + "/")
+    wait_js(page, "window.__retime && window.__retime.ready")
+    wait_js(page, "document.querySelector('#status').classList.contains('live')")
+    return page
+
+
+def point_center(page, i):
+    box = page.locator(f'#curve g.cp[data-index="{i}"] .knob').bounding_box()
+    return box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+
+
+def drag(page, x0, y0, x1, y1, steps=25, pause=0.012):
+    page.mouse.move(x0, y0)
+    page.mouse.down()
+    for k in range(1, steps + 1):
+        page.mouse.move(x0 + (x1 - x0) * k / steps, y0 + (y1 - y0) * k / steps)
+        time.sleep(pause)
+    page.mouse.up()
+
+
+def test_load_drag_lock_export(browser, server, shots):
+    url, outdir, clip = server
+    errors = []
+    page = open_page(browser, url, errors)
+    assert "16_16" in page.inner_text("#clipinfo") and "510 frames" in page.inner_text("#clipinfo")
+    webgl = page.evaluate("window.__retime.webgl")
+    assert webgl, "no WebGL in this Chromium: the 3-D view is off"
+    assert page.locator("#viewer canvas").count() == 1
+    page.screenshot(path=str(shots / "editor-1-loaded.png"))
+
+    # pause at a fixed time so that the poses can be compared
+    page.click("#play")
+    page.evaluate("window.__retime.playing = false")
+    page.locator("#scrub").fill("600")
+    wait_js(page, "window.__retime.shown && Math.abs(window.__retime.shown.t - 0.6 * 4.241667) < 0.01")
+    before = page.evaluate("({s: window.__retime.shown.sourceRetimed, d: document.querySelector('#curve-path').getAttribute('d'),"
+                           " pose: Array.from(window.__retime.viewer.lastPoses[1].slice(0, 9))})")
+    viewer_before = page.locator("#viewer").screenshot()
+
+    # add a control point by double-clicking in the middle of the editor, then drag it up
+    box = page.locator("#curve").bounding_box()
+    page.mouse.dblclick(box["x"] + box["width"] * 0.45, box["y"] + box["height"] * 0.55)
+    wait_js(page, "window.__retime.solution.points.length === 3")
+    x, y = point_center(page, 1)
+    drag(page, x, y, x - 0.12 * box["width"], y - 0.3 * box["height"])
+    wait_js(page, "window.__retime.solution && window.__retime.solution.final && "
+                  "window.__retime.lastSolvedSeq === window.__retime.seq")
+    time.sleep(0.3)
+    after = page.evaluate("({s: window.__retime.shown.sourceRetimed, d: document.querySelector('#curve-path').getAttribute('d'),"
+                          " pose: Array.from(window.__retime.viewer.lastPoses[1].slice(0, 9)), sol: window.__retime.solution})")
+    sol = after["sol"]
+    p = sol["points"][1]
+    # the point moved up and left: the first part now plays faster than the original
+    assert p["s"] / p["t"] > 1.3, p
+    speed = np.asarray(sol["speed"])
+    assert speed[0] > 1.3 and speed[-1] < 0.9
+    assert after["d"] != before["d"]  # the curve on screen changed
+    assert after["s"] != pytest.approx(before["s"], abs=1e-3)  # the retimed character shows another pose
+    assert not np.allclose(after["pose"], before["pose"], atol=1e-4)
+    assert page.locator("#viewer").screenshot() != viewer_before
+    # the curve drawn is the linear warp through the control points, frame by frame
+    t = np.asarray(sol["curve"]["t"])
+    pts = sol["points"]
+    expected = np.interp(t, [q["t"] for q in pts], [q["s"] for q in pts])
+    np.testing.assert_allclose(sol["curve"]["s"], expected, atol=1e-5)
+    page.screenshot(path=str(shots / "editor-2-dragged.png"))
+
+    # lock it (keyboard L on the selected point): a keytime marker appears on the scrub bar
+    page.click('#curve g.cp[data-index="1"]')
+    page.keyboard.press("l")
+    wait_js(page, "window.__retime.solution.points[1].locked")
+    assert page.locator("#scrub-marks .mark").count() == 1
+    assert page.locator('#curve g.cp.locked[data-index="1"] rect.knob').count() == 1
+    assert page.inner_text("#lock") == "Unlock"
+
+    # export: files land in the output folder and are offered as downloads
+    page.click("#export")
+    page.wait_for_selector("#exports a")
+    links = page.locator("#exports a")
+    assert links.count() == 2
+    with page.expect_download() as dl:
+        links.nth(0).click()
+    download = dl.value
+    saved = Path(download.path()).read_bytes()
+    name = download.suggested_filename
+    assert name.endswith(".bvh") and (outdir / name).read_bytes() == saved
+    assert saved.startswith(b"HIERARCHY")
+    from retime.motion import load_motion
+    from retime.warp import TimingCurve
+
+    exported = load_motion(outdir / name)
+    assert exported.n_frames == len(sol["curve"]["t"])
+    warp = TimingCurve.from_csv(outdir / name.replace(".bvh", ".csv"))
+    np.testing.assert_allclose(warp.s, sol["curve"]["s"], atol=1e-5)  # the CSV is the curve on screen
+    np.testing.assert_allclose(warp.t, t, atol=1e-6)
+    page.screenshot(path=str(shots / "editor-3-locked-exported.png"))
+    assert not errors, errors
+    page.close()
+
+
+def test_errors_are_shown_and_the_page_keeps_working(browser, server, shots):
+    url = server[0]
+    errors = []
+    page = open_page(browser, url, errors)
+    page.fill("#duration", "500")  # far beyond 20x slower: the server refuses
+    page.press("#duration", "Enter")
+    page.wait_for_selector(".toast")
+    text = page.inner_text(".toast")
+    assert "outside" in text and "duration" in text
+    page.screenshot(path=str(shots / "editor-4-error.png"))
+    # still live: a valid duration works
+    page.fill("#duration", "2")
+    page.press("#duration", "Enter")
+    wait_js(page, "Math.abs(window.__retime.solution.duration - 2) < 1e-9")
+    assert page.evaluate("document.querySelector('#status').classList.contains('live')")
+    assert not [e for e in errors if "400" not in e], errors
+    page.close()
+
+
+def test_drag_latency(browser, server):
+    """Drag a control point and time input -> re-solved curve painted on screen (printed)."""
+    url = server[0]
+    errors = []
+    page = open_page(browser, url, errors)
+    methods = {m["name"]: m for m in page.evaluate("window.__retime.methods")}
+    method = next(m for m in ("physics", "guided", "linear") if methods.get(m, {}).get("available"))
+    if method != "linear":
+        page.click(f'#methods button[data-method="{method}"]')
+        wait_js(page, f"window.__retime.solution.method === '{method}' && window.__retime.solution.final", timeout=60)
+    page.click("#play")  # paused: the usual state while editing (the 3-D view still redraws each change)
+    box = page.locator("#curve").bounding_box()
+    n = page.evaluate("window.__retime.solution.points.length")
+    if n <= 2:
+        page.mouse.dblclick(box["x"] + box["width"] * 0.4, box["y"] + box["height"] * 0.5)
+        wait_js(page, f"window.__retime.solution.points.length === {n + 1}")
+    i = page.evaluate("window.__retime.solution.points.length") // 2
+    page.evaluate("window.__retime.latencies = []")
+    x, y = point_center(page, i)
+    for k in range(3):  # drag up and down
+        dy = (-1) ** k * 0.15 * box["height"]
+        drag(page, x, y, x, y + dy, steps=20, pause=0.03)
+        y += dy
+        time.sleep(0.3)
+    wait_js(page, "window.__retime.lastSolvedSeq === window.__retime.seq", timeout=30)
+    time.sleep(0.2)
+    lat = page.evaluate("window.__retime.latencies")
+    ms = [x["ms"] for x in lat]
+    assert len(ms) >= 10, lat
+    med, p90 = statistics.median(ms), float(np.percentile(ms, 90))
+    solve = statistics.median([x["solve_ms"] for x in lat if x["solve_ms"] is not None])
+    frames = page.evaluate("window.__retime.clip.n_frames")
+    print(f"\n[editor latency] method={method} clip={CLIP} ({frames} frames), {len(ms)} drag updates: "
+          f"input -> re-solved curve on screen median {med:.0f} ms, p90 {p90:.0f} ms "
+          f"(server solve median {solve:.1f} ms; headless Chromium, software WebGL, 2 cores)")
+    assert med < 1000
+    assert not errors, errors
+    page.close()
