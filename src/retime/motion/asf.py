@@ -359,7 +359,7 @@ def _parse_amc_fast(body_text, dof_count, expected):
     if not np.all(table[:, name_cols] == np.array([n for n, _ in layout], dtype=object)):
         return None
     try:
-        vals = table[:, value_cols].astype(float)
+        vals = np.array(table[:, value_cols].ravel().tolist(), dtype=float).reshape(len(table), len(value_cols))
     except ValueError:
         return None
     if not np.all(np.isfinite(vals)):

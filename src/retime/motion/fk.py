@@ -9,16 +9,19 @@ def forward_kinematics(motion, rotations=None, translations=None):
     skeleton = motion.skeleton
     rotations = motion.rotations if rotations is None else rotations
     translations = motion.translations if translations is None else translations
-    positions = np.empty(translations.shape)
-    orientations = np.empty(rotations.shape)
+    # joint-major copies: each joint's frames are contiguous, which makes the per-joint steps cheaper
+    rot = np.ascontiguousarray(np.moveaxis(rotations, -2, 0))
+    tr = np.ascontiguousarray(np.moveaxis(translations, -2, 0))
+    positions = np.empty(tr.shape)
+    orientations = np.empty(rot.shape)
     for j, p in enumerate(skeleton.parents):
         if p < 0:
-            positions[:, j] = translations[:, j]
-            orientations[:, j] = rotations[:, j]
+            positions[j] = tr[j]
+            orientations[j] = rot[j]
         else:
-            positions[:, j] = positions[:, p] + qrot(orientations[:, p], translations[:, j])
-            orientations[:, j] = qmul(orientations[:, p], rotations[:, j])
-    return positions, orientations
+            positions[j] = positions[p] + qrot(orientations[p], tr[j])
+            orientations[j] = qmul(orientations[p], rot[j])
+    return np.ascontiguousarray(np.moveaxis(positions, 0, -2)), np.ascontiguousarray(np.moveaxis(orientations, 0, -2))
 
 
 def end_site_positions(motion, positions=None, orientations=None):
