@@ -368,7 +368,7 @@ def stance_frames(frames, fps, foot: int, toe: int, share=0.05) -> np.ndarray:
     pos = frames[0]
     F = len(pos)
     score = np.zeros(F)
-    width = max(1, int(round(0.2 * fps)))
+    width = max(1, min(F, int(round(0.2 * fps))))
     kernel = np.ones(width) / width
     for j in {foot, toe}:
         x = pos[:, j]

@@ -152,9 +152,10 @@ class DynamicsTerms:
         if not (torque_scale > 0):
             raise RetimeError(f"torque-limit scale must be positive, got {torque_scale}")
         f = self.factors(mass_factors)
-        Wc = np.einsum("nkbs,k->nbs", self.W[:, 2:], g)
-        W3 = np.stack([self.W[:, 0], self.W[:, 1], Wc], axis=1)
-        abc = project(self.tree, self.R, self.o, W3, f)
+        coef = np.zeros((3, 5))
+        coef[0, 0] = coef[1, 1] = 1.0
+        coef[2, 2:] = g
+        abc = project(self.tree, self.R, self.o, self.W, f, coef)
         mu = self.friction if friction is None else float(friction)
         n_root = self.tree.n_root
         hi = np.zeros(self.tree.nv) if self.tau_limit is None else self.tau_limit * torque_scale
@@ -321,3 +322,18 @@ def path_dynamics(motion, body=None, gravity=STANDARD_GRAVITY, mass_factors=None
     """One-shot :func:`dynamics_terms` followed by :meth:`DynamicsTerms.combine`."""
     terms = dynamics_terms(motion, body, samples_per_frame=samples_per_frame, contacts=contacts, smoothing=smoothing)
     return terms.combine(gravity=gravity, mass_factors=mass_factors, friction=friction, torque_scale=torque_scale)
+
+
+def force_timing(motion, repeats=3, **kwargs) -> dict:
+    """Best-of-``repeats`` wall time per source frame (ms) of the Force phase (Fig. 12) for a motion:
+    body model, path derivatives, kinematics, per-body wrenches, contacts and their Jacobians,
+    reference forces and torque limits (:func:`dynamics_terms`), then :meth:`DynamicsTerms.combine`."""
+    import time
+
+    dynamics_terms(motion.frames(slice(0, min(motion.n_frames, 8))), **kwargs).combine()  # load kernels
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        dynamics_terms(motion, **kwargs).combine()
+        best = min(best, time.perf_counter() - t0)
+    return {"frames": motion.n_frames, "force_ms": 1e3 * best / motion.n_frames}
