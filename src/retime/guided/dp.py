@@ -414,3 +414,200 @@ def brute_force(F, m=None, fixed=None):
             if c < best:
                 best, arg = c, np.array(frames)
     return best, arg
+
+
+# ----------------------------------------------------------------------------------------------
+# Lagrangian bounds: prune the band without losing the optimum
+
+
+@njit(cache=True)
+def _lagrange_forward(F, s, lam):
+    """Fw[j, d-1] = min over paths from frame 0 to vertex (j-d, j) of cost + lam * steps.
+
+    Also returns the steps of a minimising path to each vertex."""
+    n = F.shape[0]
+    Fw = np.full((n, s), INF)
+    steps = np.zeros((n, s), dtype=np.int64)
+    for j in range(1, min(s, n - 1) + 1):
+        Fw[j, j - 1] = lam
+        steps[j, j - 1] = 1
+    for j in range(1, n - 1):
+        for e in range(1, s + 1):
+            k = j + e
+            if k >= n:
+                break
+            best = INF
+            bs = 0
+            for d in range(1, s + 1):
+                if j - d < 0:
+                    break
+                v = Fw[j, d - 1] + F[j, d - 1, e - 1]
+                if v < best:
+                    best = v
+                    bs = steps[j, d - 1]
+            v = best + lam
+            if v < Fw[k, e - 1]:
+                Fw[k, e - 1] = v
+                steps[k, e - 1] = bs + 1
+    return Fw, steps
+
+
+@njit(cache=True)
+def _lagrange_backward(F, s, lam):
+    """Bw[j, d-1] = min over paths from vertex (j-d, j) to the last frame of cost + lam * steps."""
+    n = F.shape[0]
+    Bw = np.full((n, s), INF)
+    for d in range(1, s + 1):
+        Bw[n - 1, d - 1] = 0.0
+    for j in range(n - 2, 0, -1):
+        for d in range(1, s + 1):
+            if j - d < 0:
+                break
+            best = INF
+            for e in range(1, s + 1):
+                k = j + e
+                if k >= n:
+                    break
+                v = F[j, d - 1, e - 1] + Bw[k, e - 1]
+                if v < best:
+                    best = v
+            Bw[j, d - 1] = best + lam
+    return Bw
+
+
+def lagrange_multipliers(F, m, iters=48):
+    """Step prices lam with their dual values min_path(cost + lam steps) - lam (m - 1) <= optimum.
+
+    Bisection on the subgradient (steps of the lam-optimal path - (m - 1)). Returns a list of
+    (dual value, lam) pairs, best first.
+    """
+    F = np.ascontiguousarray(F, dtype=np.float64)
+    n, s = F.shape[0], F.shape[1]
+    finite = F[np.isfinite(F)]
+    top = float(finite.max()) if finite.size else 1.0
+    lo, hi = -2.0 * top - 1.0, 2.0 * top + 1.0
+    hist = []
+    for _ in range(iters):
+        lam = 0.5 * (lo + hi)
+        Fw, steps = _lagrange_forward(F, s, lam)
+        e = int(np.argmin(Fw[n - 1]))
+        total = float(Fw[n - 1, e])
+        if not np.isfinite(total):
+            break
+        hist.append((total - lam * (m - 1), lam))
+        st = int(steps[n - 1, e])
+        if st > m - 1:
+            lo = lam  # too many steps: make steps dearer
+        elif st < m - 1:
+            hi = lam
+        else:
+            break
+    hist.sort(reverse=True)
+    return hist
+
+
+@njit(cache=True)
+def _vertex_ranges(Fws, Bws, lams, lo, hi, m, ub):
+    """Per frame j, the hull [PA, PB] of positions where a vertex (j-d, j) survives the bounds."""
+    n, s = Fws.shape[1], Fws.shape[2]
+    L = lams.shape[0]
+    PA = np.full(n, m, dtype=np.int64)
+    PB = np.full(n, -1, dtype=np.int64)
+    # positions where frame f is inside the band: [first p with hi_p >= f, last p with lo_p <= f]
+    first = np.searchsorted(hi, np.arange(n), side="left")
+    last = np.searchsorted(lo, np.arange(n), side="right") - 1
+    for j in range(1, n):
+        for d in range(1, s + 1):
+            i = j - d
+            if i < 0:
+                break
+            pa = max(first[j], first[i] + 1)
+            pb = min(last[j], last[i] + 1)
+            if pa > pb:
+                continue
+            ok = True
+            for a in range(L):
+                fa = Fws[a, j, d - 1]
+                if not np.isfinite(fa):
+                    ok = False
+                    break
+                for b in range(L):
+                    C = fa + Bws[b, j, d - 1] - lams[b] * (m - 1) - ub
+                    slope = lams[b] - lams[a]
+                    if slope > 0:
+                        lim = np.floor(-C / slope)
+                        if lim < pb:
+                            pb = np.int64(max(lim, -1.0))
+                    elif slope < 0:
+                        lim = np.ceil(C / (-slope))
+                        if lim > pa:
+                            pa = np.int64(min(lim, m * 1.0))
+                    elif C > 0:
+                        ok = False
+                if not ok or pa > pb:
+                    ok = False
+                    break
+            if ok:
+                PA[j] = min(PA[j], pa)
+                PB[j] = max(PB[j], pb)
+    return PA, PB
+
+
+@njit(cache=True)
+def _paint(PA, PB, m, ascending):
+    """For each position, the first frame (in the given order) whose [PA, PB] covers it (-1: none)."""
+    n = PA.shape[0]
+    out = np.full(m, -1, dtype=np.int64)
+    nxt = np.arange(m + 1)
+    for t in range(n):
+        j = t if ascending else n - 1 - t
+        a, b = PA[j], PB[j]
+        if a > b:
+            continue
+        # find the first unpainted position >= a (path halving)
+        p = a
+        while nxt[p] != p:
+            nxt[p] = nxt[nxt[p]]
+            p = nxt[p]
+        while p <= b:
+            out[p] = j
+            nxt[p] = p + 1
+            q = p + 1
+            while nxt[q] != q:
+                nxt[q] = nxt[nxt[q]]
+                q = nxt[q]
+            p = q
+    return out
+
+
+def prune_band(F, m, band: Band, upper_bound: float, n_multipliers: int = 6) -> Band:
+    """The band cut down to positions/frames that can still lie on a warp costing <= upper_bound.
+
+    For a vertex (i, j) with j at output position p and step prices a, b:
+    cost(prefix) >= Fw_a(i, j) - a p and cost(suffix) >= Bw_b(i, j) - b (m-1-p), where Fw/Bw are
+    the cheapest paths from the start / to the end with a price per step (Lagrangian
+    relaxation of the frame count). Pairs (vertex, p) whose bound exceeds the upper bound cannot
+    be on an optimal warp; the optimum lies in the band of those left, so the DP over it is
+    still exact.
+    """
+    F = np.ascontiguousarray(F, dtype=np.float64)
+    n, s = F.shape[0], F.shape[1]
+    hist = lagrange_multipliers(F, m)
+    if not hist:
+        return band
+    lams = np.array(sorted({lam for _, lam in hist[:n_multipliers]}))
+    Fws = np.stack([_lagrange_forward(F, s, lam)[0] for lam in lams])
+    Bws = np.stack([_lagrange_backward(F, s, lam) for lam in lams])
+    ub = float(upper_bound) * (1 + 1e-9) + 1e-9
+    PA, PB = _vertex_ranges(Fws, Bws, lams, band.lo, band.hi, m, ub)
+    lo_p = _paint(PA, PB, m, True)
+    hi_p = _paint(PA, PB, m, False)
+    if np.any(lo_p[1:] < 0):
+        return band  # the bound is not an upper bound of this problem: keep the full band
+    lo = np.maximum(band.lo, lo_p)
+    hi = np.minimum(band.hi, hi_p)
+    lo[0] = hi[0] = band.lo[0]
+    lo2, hi2 = _band_kernel(lo, hi, s)
+    if np.any(lo2 > hi2):
+        return band
+    return Band(lo2, hi2)

@@ -116,13 +116,18 @@ def pose_matrix(root_frame_positions: np.ndarray, meters_per_unit: float = 1.0) 
     return np.ascontiguousarray(x)
 
 
-def reference_features(z: np.ndarray, coeffs: tuple[float, float, float]) -> np.ndarray:
-    """Explicit feature vectors (r - 2, 3 D) of a reference pose sequence ``z`` (r, D)."""
+def reference_features(z: np.ndarray, coeffs: tuple[float, float, float], stride: int = 1) -> np.ndarray:
+    """Explicit feature vectors (r - 2 stride, 3 D) of a reference pose sequence ``z`` (r, D).
+
+    Feature r comes from frames (r, r + stride, r + 2 stride), which play one output step apart.
+    """
     z = np.asarray(z, dtype=np.float64)
-    if z.shape[0] < 3:
-        raise RetimeError(f"the reference has {z.shape[0]} frames at the analysis rate; it needs at least 3")
+    st = int(stride)
+    if z.shape[0] < 2 * st + 1:
+        raise RetimeError(f"the reference has {z.shape[0]} frames at the analysis rate; it needs at least {2 * st + 1}")
     a, b, c = coeffs
-    zm, z0, zp = z[:-2], z[1:-1], z[2:]
+    r = z.shape[0]
+    zm, z0, zp = z[: r - 2 * st], z[st: r - st], z[2 * st:]
     return np.hstack([a * z0, b * (zp - zm), c * (zp - 2 * z0 + zm)])
 
 

@@ -199,10 +199,13 @@ def _knn_kernel(PI, PJ, PK, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out):
 
 
 @njit(cache=True)
-def _projections(G, a2, b2, c2, PI, PJ, PK):
-    """Three-tap filters of G along references: the per-frame parts of y . z_r."""
+def _projections(G, st, a2, b2, c2, PI, PJ, PK):
+    """Three-tap filters of G along references: the per-frame parts of y . z_r.
+
+    Reference feature r is made of reference frames (r, r + st, r + 2 st).
+    """
     rows = G.shape[0]
-    R = G.shape[1] - 2
+    R = G.shape[1] - 2 * st
     for t in range(rows):
         g = G[t]
         pi = PI[t]
@@ -210,8 +213,8 @@ def _projections(G, a2, b2, c2, PI, PJ, PK):
         pk = PK[t]
         for r in range(R):
             g0 = g[r]
-            g1 = g[r + 1]
-            g2 = g[r + 2]
+            g1 = g[r + st]
+            g2 = g[r + 2 * st]
             V = g2 - g0
             A = g2 - 2.0 * g1 + g0
             pi[r] = c2 * A - b2 * V
@@ -236,13 +239,13 @@ def _gram_band(x: np.ndarray, width: int) -> np.ndarray:
     return H
 
 
-def _check(x, z, s, k):
+def _check(x, z, s, k, st=1):
     x = np.ascontiguousarray(x, dtype=np.float64)
     z = np.ascontiguousarray(z, dtype=np.float64)
     if x.ndim != 2 or z.ndim != 2 or x.shape[1] != z.shape[1]:
         raise RetimeError(f"input poses {x.shape} and reference poses {z.shape} must be (frames, D) with the same D")
-    if z.shape[0] < 3:
-        raise RetimeError(f"the reference has {z.shape[0]} frames at the analysis rate; it needs at least 3")
+    if z.shape[0] < 2 * st + 1:
+        raise RetimeError(f"the reference has {z.shape[0]} frames at the analysis rate; it needs at least {2 * st + 1}")
     if int(s) < 1:
         raise RetimeError(f"the skip limit must be at least 1 (got {s})")
     if int(k) < 1:
@@ -257,22 +260,25 @@ def table_width(s: int) -> int:
     return 8 * ((int(s) + 7) // 8)
 
 
-def effective_k(k: int, r: int) -> int:
-    """Neighbours actually used: at most the number of reference features (r - 2)."""
-    return max(1, min(int(k), int(r) - 2))
+def effective_k(k: int, r: int, st: int = 1) -> int:
+    """Neighbours actually used: at most the number of reference features (r - 2 st)."""
+    return max(1, min(int(k), int(r) - 2 * int(st)))
 
 
-def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, block_bytes=96 << 20):
+def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_stride=1, block_bytes=96 << 20):
     """Local scores of all frame triples with gaps <= s.
 
     x: (n, D) input poses at the analysis rate (already low-passed);
     z: (r, D) reference poses at the same rate; coeffs: ``FeatureWeights.coefficients(fps)``;
-    mask: optional (n, s) bool, ``mask[j, d-1]`` = scores with vertex (j-d, j) are wanted.
+    mask: optional (n, s) bool, ``mask[j, d-1]`` = scores with vertex (j-d, j) are wanted;
+    ref_stride: reference features come from frames (r - st, r, r + st) (every r: a reference
+    played at 1/st of the analysis rate, all phases kept).
     Returns F (n, s, table_width(s)) float64, see the module docstring for the layout.
     """
-    x, z, s, k = _check(x, z, s, k)
+    st = int(ref_stride)
+    x, z, s, k = _check(x, z, s, k, st)
     n, r = x.shape[0], z.shape[0]
-    K = effective_k(k, r)
+    K = effective_k(k, r, st)
     if mask is None:
         mask = np.ones((n, s), dtype=np.bool_)
     else:
@@ -280,7 +286,7 @@ def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, block_
         if mask.shape != (n, s):
             raise ValueError(f"mask shape {mask.shape} != {(n, s)}")
     if method == "approx":
-        return _score_table_kdtree(x, z, coeffs, s, K, mask, eps)
+        return _score_table_kdtree(x, z, coeffs, s, K, mask, eps, st)
     if method != "exact":
         raise RetimeError(f"unknown kNN method {method!r} (use 'exact' or 'approx')")
     out = np.full((n, s, table_width(s)), INF)
@@ -290,8 +296,8 @@ def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, block_
     zc = z - mu
     a, b, c = coeffs
     a2, b2, c2 = a * a, b * b, c * c
-    R = r - 2
-    zf = np.hstack([a * zc[1:-1], b * (zc[2:] - zc[:-2]), c * (zc[2:] - 2 * zc[1:-1] + zc[:-2])])
+    R = r - 2 * st
+    zf = reference_features(zc, coeffs, st)
     zz = np.einsum("ij,ij->i", zf, zf)
     H = _gram_band(xc, 2 * s)
     kernel = compiled(_knn3_kernel if K <= 3 else _knn_kernel, _KNN_SIG)
@@ -310,7 +316,7 @@ def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, block_
         nt = t1 - t0
         with single_threaded_blas():
             np.matmul(xc[t0:t1], zt, out=G[:nt])
-        _projections(G[:nt], a2, b2, c2, PI, PJ, PK)
+        _projections(G[:nt], st, a2, b2, c2, PI, PJ, PK)
         kernel(PI, PJ, PK, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out)
         j0 = j1
     return out
@@ -326,13 +332,13 @@ def all_triples(n, s, mask=None):
     return i[ok], j[ok], k[ok], d[ok], e[ok]
 
 
-def _score_table_kdtree(x, z, coeffs, s, K, mask, eps, chunk=200_000):
+def _score_table_kdtree(x, z, coeffs, s, K, mask, eps, st=1, chunk=200_000):
     from scipy.spatial import cKDTree
 
     n = x.shape[0]
     mu = z.mean(axis=0)
     xc, zc = x - mu, z - mu
-    tree = cKDTree(reference_features(zc, coeffs))
+    tree = cKDTree(reference_features(zc, coeffs, st))
     out = np.full((n, s, table_width(s)), INF)
     i, j, k, d, e = all_triples(n, s, mask)
     for c0 in range(0, len(i), chunk):
@@ -344,15 +350,16 @@ def _score_table_kdtree(x, z, coeffs, s, K, mask, eps, chunk=200_000):
     return out
 
 
-def score_table_bruteforce(x, z, coeffs, s, k=3):
+def score_table_bruteforce(x, z, coeffs, s, k=3, ref_stride=1):
     """Plain NumPy reference implementation: explicit feature vectors, all distances, sort.
 
     Same layout and meaning as :func:`score_table`. Used by tests and the benchmark.
     """
-    x, z, s, k = _check(x, z, s, k)
+    st = int(ref_stride)
+    x, z, s, k = _check(x, z, s, k, st)
     n, r = x.shape[0], z.shape[0]
-    K = effective_k(k, r)
-    zf = reference_features(z, coeffs)
+    K = effective_k(k, r, st)
+    zf = reference_features(z, coeffs, st)
     out = np.full((n, s, table_width(s)), INF)
     i, j, kk, d, e = all_triples(n, s)
     chunk = max(1, int(4e7 // max(1, zf.shape[0] * zf.shape[1])))

@@ -1,0 +1,334 @@
+"""Guided time warping on motions: :func:`guided_warp` and :func:`guided_solve`.
+
+Pipeline (Hsu, da Silva, Popović 2007):
+
+1. Poses: joint positions in the root's frame, in metres (:func:`root_frame_poses`), low-passed
+   with a box of ``prefilter`` seconds at the clip's own rate.
+2. Analysis grid: output frames at ``analysis_fps`` (30 Hz, as in the paper). Keytimes cut the
+   clip into segments; a segment whose output is longer than its input (an expansion, or any
+   segment when the reference is another motion) is upsampled (``upsample`` grid frames per
+   analysis frame) so that every segment is a compression of its grid (section 3.1).
+   The input is sampled on that grid (cubic interpolation), the reference at the analysis rate.
+3. Local scores of all frame triples (exact kNN, or approximate), then the exact constrained
+   shortest path through the keytimes (or the coarse-to-fine heuristic with ``fast=True``, or
+   the unconstrained path with ``free=True``).
+4. The chosen grid frames give source times at the output frames; a moving average (keytimes
+   kept) smooths them, and the result is a :class:`retime.warp.TimingCurve` in seconds at the
+   clip's own rate: apply it with :func:`retime.warp.apply_timing` (slerp) or
+   :func:`retime.guided.postprocess.adaptive_smooth` (local averaging).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from retime.errors import RetimeError
+from retime.guided import dp
+from retime.guided.features import FeatureWeights, lowpass, positions_in_root_frame
+from retime.guided.heuristic import solve_heuristic
+from retime.guided.postprocess import moving_average
+from retime.guided.problem import SolveStats, WarpProblem, solve_exact
+from retime.motion import Motion, forward_kinematics
+from retime.warp import TimingCurve, check_keytimes, scale_warp, snap_duration
+
+#: above this many DP states the exact solver first runs the heuristic for an upper bound and
+#: prunes the band with Lagrangian bounds (exact either way)
+PRUNE_STATES = 20_000_000
+
+
+@dataclass
+class GuidedResult:
+    """What :func:`guided_solve` found."""
+
+    curve: TimingCurve  # the smoothed timing curve: output seconds -> source seconds
+    raw_curve: TimingCurve  # the discrete warp itself (piecewise linear through the chosen frames)
+    objective: float  # sum of local scores of the chosen warp (eq. 1)
+    exact: bool  # globally optimal (False: coarse-to-fine heuristic)
+    frames: np.ndarray  # (m,) grid frame chosen for each output frame
+    output_times: np.ndarray  # (m,) output time of each analysis frame (s)
+    source_times: np.ndarray  # (m,) source time shown there before smoothing (s)
+    n: int  # grid frames (after upsampling)
+    m: int  # output frames at the analysis rate
+    r: int  # reference frames at the analysis rate
+    s: int  # skip limit
+    k: int  # neighbours
+    analysis_fps: float
+    upsample: list = field(default_factory=list)  # grid frames per analysis frame, per segment
+    stats: SolveStats = field(default_factory=SolveStats)
+
+
+def root_frame_poses(motion: Motion) -> np.ndarray:
+    """(F, J, 3) joint positions in the root's coordinate frame, in metres."""
+    pos, ori = forward_kinematics(motion)
+    root = int(np.nonzero(motion.skeleton.parents < 0)[0][0])
+    rel = positions_in_root_frame(pos, pos[:, root], ori[:, root])
+    return rel * float(motion.skeleton.meters_per_unit)
+
+
+def _check_reference(motion: Motion, reference: Motion):
+    diff = motion.skeleton.same_structure(reference.skeleton)
+    if diff:
+        shown = ", ".join(diff[:8]) + (f" and {len(diff) - 8} more" if len(diff) > 8 else "")
+        raise RetimeError(f"the reference's skeleton differs from the input's in joints {shown} "
+                          "(missing on one side or with another parent); guided warping needs the same skeleton")
+
+
+def _pose_pair(motion, reference):
+    """Flattened poses of input and reference with the columns constant in both dropped."""
+    a = root_frame_poses(motion)
+    b = a if reference is motion else root_frame_poses(reference)
+    if reference is not motion:
+        order = [reference.skeleton.index(nm) for nm in motion.skeleton.names]
+        b = b[:, order]
+    x = a.reshape(a.shape[0], -1)
+    z = b.reshape(b.shape[0], -1)
+    keep = (np.ptp(x, axis=0) > 1e-9) | (np.ptp(z, axis=0) > 1e-9)
+    if not keep.any():
+        keep[:] = True
+    return np.ascontiguousarray(x[:, keep]), np.ascontiguousarray(z[:, keep])
+
+
+def _sample(poses, fps, times):
+    """Poses (F, D) at ``fps`` sampled at ``times`` (s) with a cubic spline."""
+    F = poses.shape[0]
+    if F < 4:
+        u = np.clip(np.asarray(times) * fps, 0, F - 1)
+        return np.stack([np.interp(u, np.arange(F), poses[:, c]) for c in range(poses.shape[1])], axis=1)
+    spline = CubicSpline(np.arange(F) / fps, poses, axis=0)
+    return spline(np.clip(times, 0.0, (F - 1) / fps))
+
+
+def _segments(S, T, keytimes, A):
+    """Segment ends in source seconds, output seconds and output positions (analysis frames)."""
+    src = [0.0] + [k[0] for k in keytimes] + [S]
+    dst = [0.0] + [k[1] for k in keytimes] + [T]
+    pos = [int(round(b * A)) for b in dst]
+    for q in range(1, len(pos)):
+        if pos[q] <= pos[q - 1]:
+            if q == len(pos) - 1 and len(pos) == 2:
+                raise RetimeError(f"the output ({T:g} s) is shorter than one frame at the {A:g} Hz analysis rate")
+            raise RetimeError(f"keytimes at output {dst[q - 1]:g} s and {dst[q]:g} s are closer than one "
+                              f"frame at the {A:g} Hz analysis rate; move them apart")
+    return src, dst, pos
+
+
+def _upsampling(src, pos, A, s, self_reference, upsample, free):
+    """Grid frames per analysis frame for each segment."""
+    ups = []
+    for q in range(len(src) - 1):
+        if upsample is not None:
+            ups.append(int(upsample))
+            continue
+        if free:
+            ups.append(1 if self_reference else 4)
+            continue
+        speed = (src[q + 1] - src[q]) * A / (pos[q + 1] - pos[q])  # input frames per output frame
+        want = 1.0 if self_reference else 2.0  # grid frames per output frame at least
+        ups.append(max(1, int(math.ceil(want / speed - 1e-9))))
+    return ups
+
+
+def _shortest(src, dst, pos, ups, A, s, T):
+    """Error for a segment the skip limit cannot compress enough (or that cannot be filled)."""
+    for q in range(len(src) - 1):
+        N = max(1, int(round((src[q + 1] - src[q]) * A * ups[q])))
+        M = pos[q + 1] - pos[q]
+        if N > s * M:
+            steps = -(-N // s)
+            if len(src) == 2:
+                return RetimeError(f"a duration of {T:g} s is too short for --max-skip {s}: the shortest "
+                                   f"possible is {steps / A:g} s ({steps + 1} frames at {A:g} Hz); "
+                                   "ask for a longer duration or raise --max-skip")
+            return RetimeError(f"between keytimes {src[q]:g}={dst[q]:g} and {src[q + 1]:g}={dst[q + 1]:g} s "
+                               f"the output is too short for --max-skip {s}: it needs at least "
+                               f"{steps / A:g} s there; move the keytimes or raise --max-skip")
+        if N < M:
+            return RetimeError(f"between source times {src[q]:g} and {src[q + 1]:g} s the output is longer "
+                               f"than {ups[q]} grid frame(s) per analysis frame can fill; raise the upsampling")
+    return None
+
+
+def guided_solve(motion: Motion, reference: Motion | None = None, duration: float | None = None,
+                 scale: float | None = None, free: bool = False, keytimes=(), max_skip: int = 8,
+                 neighbors: int = 3, fast: bool = False, analysis_fps: float = 30.0,
+                 weights: FeatureWeights | None = None, prefilter: float = 0.1, upsample: int | None = None,
+                 smoothing: int = 5, knn: str = "exact", eps: float = 0.0, quiet: bool = True) -> GuidedResult:
+    """Guided time warp of ``motion``; returns a :class:`GuidedResult` (``.curve`` is the timing curve).
+
+    motion: the input. reference: the motion whose timing to imitate (default: ``motion`` itself,
+    which preserves its natural timing); it must have the same skeleton.
+    duration / scale / free: output length in seconds, as a factor of the input's (0.5 = half as
+    long), or chosen by the optimisation (the paper's unconstrained search, V8). With none of
+    them the output lasts as long as the input.
+    keytimes: [(source s, output s), ...] that the warp passes through exactly.
+    max_skip: skip limit s, the most grid frames one output frame may advance (the fastest
+    playback is ``max_skip / upsample`` times the original speed).
+    neighbors: k of the k-nearest-neighbour local score.
+    fast: coarse-to-fine heuristic instead of the exact search.
+    analysis_fps: rate of the search (30 Hz in the paper); the curve is in seconds whatever it is.
+    weights: :class:`FeatureWeights` of pose, velocity and acceleration.
+    prefilter: width of the box low-pass filter on joint positions (s).
+    upsample: grid frames per analysis frame (default: 1 for compressions with the input as its own
+    reference, enough for at least 2 per output frame otherwise, 4 for ``free`` with a reference).
+    smoothing: moving-average window of the warp, in output frames at the analysis rate (1 = none).
+    knn: "exact" or "approx" (KD-tree with relative error ``eps``).
+    """
+    t_start = time.perf_counter()
+    if motion.n_frames < 2:
+        raise RetimeError("a single frame has no timing to change")
+    s = int(max_skip)
+    if not 1 <= s <= 255:
+        raise RetimeError(f"--max-skip must be between 1 and 255, got {max_skip}")
+    if int(neighbors) < 1:
+        raise RetimeError(f"--neighbors must be at least 1, got {neighbors}")
+    A = float(analysis_fps)
+    if not A > 0:
+        raise RetimeError(f"the analysis rate must be positive, got {analysis_fps}")
+    if sum(v is not None and v is not False for v in (duration, scale)) + bool(free) > 1:
+        raise RetimeError("give only one of duration, scale and free")
+    weights = weights or FeatureWeights()
+    self_ref = reference is None or reference is motion
+    reference = motion if self_ref else reference
+    if not self_ref:
+        _check_reference(motion, reference)
+    S = motion.duration
+    if free:
+        if keytimes:
+            raise RetimeError("keytimes need a fixed output duration; drop --free or the keytimes")
+        T = None
+    elif scale is not None:
+        T = scale_warp(S, float(scale), motion.fps).duration
+    elif duration is not None:
+        if not duration > 0:
+            raise RetimeError(f"duration must be positive, got {duration}")
+        T = snap_duration(float(duration), motion.fps)
+    else:
+        T = S
+    keys = check_keytimes(keytimes, S, T if T is not None else S) if keytimes else []
+    if free:
+        src, dst, pos = [0.0, S], [0.0, S], [0, max(1, int(round(S * A)))]
+    else:
+        src, dst, pos = _segments(S, T, keys, A)
+    ups = _upsampling(src, pos, A, s, self_ref, upsample, free)
+    if not free:
+        err = _shortest(src, dst, pos, ups, A, s, T)
+        if err is not None:
+            raise err
+
+    # --- poses on the grid and at the analysis rate
+    x_src, z_src = _pose_pair(motion, reference)
+    x_src = lowpass(x_src, max(1, int(round(prefilter * motion.fps))))
+    z_src = lowpass(z_src, max(1, int(round(prefilter * reference.fps))))
+    grid, fixed = [], {}
+    for q in range(len(src) - 1):
+        N = max(1, int(round((src[q + 1] - src[q]) * A * ups[q])))
+        grid.append(src[q] + (src[q + 1] - src[q]) * np.arange(N) / N)
+        if 0 < q:
+            fixed[pos[q]] = int(sum(len(g) for g in grid[:-1]))
+    grid.append(np.array([S]))
+    grid_times = np.concatenate(grid)
+    n = grid_times.size
+    x = _sample(x_src, motion.fps, grid_times)
+    r_times = np.arange(int(math.floor(reference.duration * A + 1e-9)) + 1) / A
+    z = _sample(z_src, reference.fps, r_times)
+    if z.shape[0] < 3:
+        raise RetimeError(f"the reference is {reference.duration:.3g} s long: at {A:g} Hz that is "
+                          f"{z.shape[0]} frame(s), and the local score needs at least 3")
+    m = None if free else pos[-1] + 1
+    problem = WarpProblem(x, z, A, m, fixed, s, int(neighbors), weights, knn, float(eps))
+    stats = SolveStats()
+    progress = _Progress(quiet)
+    if free:
+        progress.say("scoring and searching (free duration)")
+        sol, F, stats = solve_exact(problem, stats=stats)
+        exact = True
+    elif fast:
+        progress.say("coarse-to-fine search")
+        sol, F, stats = solve_heuristic(problem, stats=stats)
+        exact = False
+    else:
+        band = problem.band()
+        ub = None
+        F = None
+        if band.n_states(s) > PRUNE_STATES:
+            progress.say(f"scoring {n} x {s}^2 frame triples against {z.shape[0]} reference frames")
+            t0 = time.perf_counter()
+            F = problem.scores()
+            stats.objective_s += time.perf_counter() - t0
+            progress.say("heuristic upper bound")
+            hsol, _, hstats = solve_heuristic(problem, F)
+            ub = hsol.objective
+            stats.extra["heuristic_objective"] = ub
+            stats.extra["heuristic_s"] = hstats.optimization_s
+            stats.optimization_s += hstats.optimization_s
+        progress.say("exact search")
+        sol, F, stats = solve_exact(problem, F, upper_bound=ub, stats=stats)
+        exact = True
+    progress.close()
+
+    frames = sol.frames
+    src_t = grid_times[frames]
+    if free:
+        out_t = np.arange(len(frames)) / A
+        fixed_out = []
+    else:
+        out_t = np.empty(m)
+        for q in range(len(pos) - 1):
+            p = np.arange(pos[q], pos[q + 1] + 1)
+            out_t[p] = dst[q] + (p - pos[q]) * (dst[q + 1] - dst[q]) / (pos[q + 1] - pos[q])
+        fixed_out = pos
+    smooth_t = moving_average(src_t, int(smoothing) | 1 if smoothing > 1 else 1, fixed_out)
+    smooth_t = np.maximum.accumulate(np.clip(smooth_t, 0.0, S))
+    curve = TimingCurve(out_t, smooth_t, kind="pchip")
+    raw = TimingCurve(out_t, src_t, kind="linear")
+    stats.extra["total_s"] = time.perf_counter() - t_start
+    return GuidedResult(curve, raw, float(sol.objective), exact, frames, out_t, src_t, n, len(frames),
+                        z.shape[0], s, int(neighbors), A, ups, stats)
+
+
+def guided_warp(motion: Motion, reference: Motion | None = None, duration: float | None = None,
+                scale: float | None = None, free: bool = False, keytimes=(), max_skip: int = 8,
+                neighbors: int = 3, fast: bool = False, analysis_fps: float = 30.0, **options) -> TimingCurve:
+    """The guided timing curve of ``motion`` (output seconds -> source seconds).
+
+    Same arguments as :func:`guided_solve` (which also returns the objective, the chosen frames
+    and timings). Example::
+
+        from retime.motion import load_motion
+        from retime.warp import apply_timing
+        from retime.guided import guided_warp
+
+        jump = load_motion("16_06.amc")
+        curve = guided_warp(jump, duration=0.6 * jump.duration)  # keeps the flight's speed
+        shorter = apply_timing(jump, curve)
+    """
+    return guided_solve(motion, reference, duration, scale, free, keytimes, max_skip, neighbors, fast,
+                        analysis_fps, **options).curve
+
+
+class _Progress:
+    """Stage messages on stderr (a tqdm bar) when asked for and stderr is a terminal."""
+
+    def __init__(self, quiet):
+        self.bar = None
+        if not quiet and sys.stderr.isatty():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=0, bar_format="{desc} [{elapsed}]", file=sys.stderr, leave=False)
+
+    def say(self, text):
+        if self.bar is not None:
+            self.bar.set_description_str(f"guided: {text}")
+            self.bar.refresh()
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+
+
