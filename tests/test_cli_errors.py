@@ -267,3 +267,33 @@ def test_a_failed_write_leaves_nothing_and_keeps_the_old_file(tmp_path):
     with pytest.raises(RetimeError, match="does not exist"):
         with atomic_write(tmp_path / "no" / "x.bvh") as f:
             pass
+
+
+@pytest.mark.parametrize("flags", [["--duration", "1e9"], ["--scale", "1e308"], ["--fps", "1e300", "--duration", "1e10"]])
+def test_absurd_output_lengths_are_refused(capsys, clip, flags):
+    out = clip / "o.bvh"
+    fails_cleanly(capsys, ["linear", clip / "16_15.amc", "-o", out, *flags], "at most", out=out)
+
+
+SMALL_BVH = ("HIERARCHY\nROOT a\n{\n OFFSET 0 0 0\n CHANNELS 3 Xrotation Yrotation Zrotation\n End Site\n {\n"
+             "  OFFSET 0 1 0\n }\n}\nMOTION\nFrames: 2\nFrame Time: 0.1\n0 0 0\n1 1 1\n")
+
+
+@pytest.mark.parametrize("old,new,line,what", [
+    ("  OFFSET 0 1 0\n", "  OFFSET 0 1 0\n  JOINT b\n  {\n   OFFSET 0 1 0\n  }\n", 9, "inside an End Site"),
+    ("Frame Time: 0.1", "Frame Time: 1e-320", 13, "Frame Time"),
+    ("Frame Time: 0.1", "Frame Time: -0.1", 13, "Frame Time"),
+    ("Frames: 2", "Frames: two", 12, "whole number"),
+    ("Frame Time: 0.1", "Frame Time: fast", 13, "number of seconds"),
+    (" CHANNELS 3 Xrotation Yrotation Zrotation", " CHANNELS 3 Xrotation Yrotation Wrotation", 5, "unknown channel"),
+    (" CHANNELS 3 Xrotation Yrotation Zrotation", " CHANNELS 4 Xrotation Yrotation Zrotation", 5, "says 4 but names 3"),
+    (" OFFSET 0 0 0\n", " OFFSET 0 0\n", 4, "OFFSET needs 3 numbers"),
+    ("ROOT a\n", "ROOT a\n{\n", 4, "'{' without"),
+    ("0 0 0\n1 1 1\n", "0 0 0\n1 1\n", 15, "frame 2 has 2 values"),
+    ("HIERARCHY\n", "", 1, "HIERARCHY"),
+])
+def test_bvh_structure_errors(capsys, tmp_path, old, new, line, what):
+    path = tmp_path / "s.bvh"
+    assert old in SMALL_BVH
+    path.write_text(SMALL_BVH.replace(old, new, 1))
+    fails_cleanly(capsys, ["info", path], path, what, line=line)

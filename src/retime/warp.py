@@ -18,6 +18,7 @@ from .motion.model import Motion
 from .motion.quat import slerp
 
 CSV_HEADER = ("output_time", "source_time")
+MAX_OUTPUT_FRAMES = 10_000_000  # about 23 hours at 120 fps
 _TOL = 1e-9
 
 
@@ -205,7 +206,11 @@ class TimingCurve:
 # -- building curves ------------------------------------------------------------------------------
 def snap_duration(duration: float, fps: float) -> float:
     """The output duration on the frame grid closest to ``duration`` (at least one frame)."""
-    return max(1, int(round(duration * fps))) / fps
+    frames = duration * fps
+    if not np.isfinite(frames) or frames > MAX_OUTPUT_FRAMES:
+        raise RetimeError(f"the output would have {frames:.3g} frames ({duration:.4g} s at {fps:g} fps); "
+                          f"retime writes at most {MAX_OUTPUT_FRAMES:,}: check the duration and frame rate")
+    return max(1, int(round(frames))) / fps
 
 
 def uniform_warp(source_duration: float, duration: float) -> TimingCurve:
@@ -223,7 +228,11 @@ def scale_warp(source_duration: float, scale: float, fps: float) -> TimingCurve:
     output frames long, the final fraction of an output frame (under 1/fps) is not played."""
     if not (scale > 0) or not np.isfinite(scale):
         raise RetimeError(f"--scale must be a positive number, got {scale}")
-    frames = int(np.floor(source_duration * scale * fps + 1e-6))
+    exact = source_duration * scale * fps
+    if not np.isfinite(exact) or exact > MAX_OUTPUT_FRAMES:
+        raise RetimeError(f"--scale {scale:g} would make {exact:.3g} output frames; retime writes at most "
+                          f"{MAX_OUTPUT_FRAMES:,}")
+    frames = int(np.floor(exact + 1e-6))
     if frames < 1:
         raise RetimeError(f"--scale {scale:g} leaves less than two frames of output")
     duration = frames / fps
@@ -276,10 +285,19 @@ def _split(u, n):
     return i0, i1, w
 
 
+def check_frame_count(curve: TimingCurve, fps: float) -> None:
+    """Refuse outputs too long to hold in memory (a duration or frame rate typed wrong)."""
+    frames = curve.duration * fps + 1
+    if not frames <= MAX_OUTPUT_FRAMES:
+        raise RetimeError(f"the output would have {frames:.3g} frames ({curve.duration:.4g} s at {fps:g} fps); "
+                          f"retime writes at most {MAX_OUTPUT_FRAMES:,}: check the duration and frame rate")
+
+
 def apply_timing(motion: Motion, curve: TimingCurve, fps: float | None = None) -> Motion:
     """Resample ``motion`` at source times curve(t) for each output frame t (slerp for rotations,
     linear for translations). The result keeps the skeleton and (unless given) the frame rate."""
     fps = motion.fps if fps is None else float(fps)
+    check_frame_count(curve, fps)
     if curve.source_duration > motion.duration + 1e-6:
         raise RetimeError(f"the timing curve reaches source time {curve.source_duration:.4g}s, "
                           f"past the end of the motion ({motion.duration:.4g}s)")
@@ -296,6 +314,7 @@ def resample_array(values, src_fps: float, curve: TimingCurve, out_fps: float | 
     """Any per-frame array (frames on axis 0) played through ``curve``, linearly interpolated."""
     values = np.asarray(values)
     out_fps = src_fps if out_fps is None else out_fps
+    check_frame_count(curve, out_fps)
     u = _source_positions(curve, src_fps, values.shape[0], out_fps)
     i0, i1, w = _split(u, values.shape[0])
     w = w.reshape((-1,) + (1,) * (values.ndim - 1))

@@ -91,6 +91,8 @@ def _parse_hierarchy_lines(path, lines):
                 raise FormatError(path, "more than one ROOT; retime reads one skeleton per file", lineno)
             if key == "JOINT" and not stack:
                 raise FormatError(path, "JOINT outside any ROOT", lineno)
+            if stack and stack[-1] < 0:
+                raise FormatError(path, f"{tokens[0]} inside an End Site (an End Site has no children)", lineno)
             name = line[len(tokens[0]):].strip()
             if not name:
                 raise FormatError(path, f"{tokens[0]} without a name", lineno)
@@ -187,13 +189,16 @@ def read_bvh(path, fps=None) -> Motion:
         raise FormatError(path, "file ends in the MOTION header (truncated?)", lines[-1][0])
     try:
         n_frames = int(header["frames"][0])
+    except ValueError:
+        raise FormatError(path, f"Frames: needs a whole number, found {header['frames'][0]!r}", header["frames"][1]) from None
+    try:
         frame_time = float(header["time"][0])
     except ValueError:
-        raise FormatError(path, "Frames: needs a whole number and Frame Time: a number", header["frames"][1]) from None
+        raise FormatError(path, f"Frame Time: needs a number of seconds, found {header['time'][0]!r}", header["time"][1]) from None
     if n_frames <= 0:
         raise FormatError(path, "the file has zero frames; there is nothing to retime", header["frames"][1])
     if fps is None:
-        if not (np.isfinite(frame_time) and frame_time > 0):
+        if not (np.isfinite(frame_time) and frame_time > 0 and np.isfinite(1.0 / frame_time)):
             raise FormatError(path, "Frame Time must be a positive number of seconds; or give --fps", header["time"][1])
         fps = fps_from_frame_time(header["time"][0])
     n_channels = sum(len(c) for c in h.channels)
