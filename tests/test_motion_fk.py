@@ -181,3 +181,17 @@ def test_continuous_removes_sign_flips():
 def test_guess_meters_per_unit(height, unit):
     assert guess_meters_per_unit(height) == pytest.approx(unit)
     assert guess_meters_per_unit(float("nan")) == 1.0
+
+
+@pytest.mark.parametrize("seq", ["XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"])
+def test_quat_to_euler_matches_scipy_and_survives_gimbal_lock(seq):
+    from retime.motion.quat import quat_to_euler, quat_to_matrix
+
+    q = Rotation.random(500, random_state=7).as_quat()
+    np.testing.assert_allclose(quat_to_matrix(q), Rotation.from_quat(q).as_matrix(), atol=1e-14)
+    np.testing.assert_allclose(quat_to_euler(seq, q, degrees=True), Rotation.from_quat(q).as_euler(seq, degrees=True), atol=1e-9)
+    # middle angle at +-90 degrees: the angles are not unique, the rotation must still come back
+    ang = np.array([[10, 90, 5], [20, -90, 15], [-170, 90, 45], [40, 89.9999999999, -35], [0, -90, 0]], dtype=float)
+    q = euler_to_quat(seq, ang, degrees=True)
+    back = euler_to_quat(seq, quat_to_euler(seq, q, degrees=True), degrees=True)
+    assert (Rotation.from_quat(back).inv() * Rotation.from_quat(q)).magnitude().max() < 1e-9

@@ -10,7 +10,6 @@ import csv
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 from .errors import FormatError, RetimeError
 from .io_util import atomic_write
@@ -48,7 +47,11 @@ class TimingCurve:
         self.t = t - t[0]
         self.s = np.maximum.accumulate(s)
         self.kind = kind
-        self._pchip = PchipInterpolator(self.t, self.s) if kind == "pchip" else None
+        self._pchip = None
+        if kind == "pchip":
+            from scipy.interpolate import PchipInterpolator  # here: importing SciPy is slow
+
+            self._pchip = PchipInterpolator(self.t, self.s)
         self._parts = None  # (outer, inner) of a composed curve
 
     # -- evaluation ---------------------------------------------------------------------------

@@ -16,7 +16,6 @@ import re
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..errors import FormatError
 from .bvh import read_text
@@ -50,8 +49,7 @@ class Asf:
         self.root_order = root_order
         self.angle_scale = angle_scale  # multiply file angles by this to get radians
         self.length_scale = length_scale  # multiply file lengths by this to get metres
-        self.c_rot = c_rot  # joint index -> Rotation (bone axis)
-        self.c_quat = {j: r.as_quat() for j, r in c_rot.items()}
+        self.c_quat = c_rot  # joint index -> quaternion (x, y, z, w) of the bone's axis frame
 
 
 def _section_lines(text):
@@ -202,7 +200,8 @@ def _build_skeleton(path, bones, hierarchy, length_unit, angle_scale, root_order
     channels.append(root_chans)
     dofs.append([d.lower() for d in root_order])
     limits.append([])
-    c_rot = {0: Rotation.from_euler(root_axis.lower(), root_orientation * angle_scale)}
+    # axis angles rotate about fixed axes in the given order (extrinsic), as Acclaim's C = Rz Ry Rx for XYZ
+    c_rot = {0: euler_to_quat(root_axis.lower(), root_orientation * angle_scale)}
     end_sites = []
     queue = [("root", 0)]
     while queue:
@@ -221,7 +220,7 @@ def _build_skeleton(path, bones, hierarchy, length_unit, angle_scale, root_order
             channels.append(["Zrotation", "Xrotation", "Yrotation"] if b.dof else [])
             dofs.append(list(b.dof))
             limits.append(list(b.limits))
-            c_rot[len(names) - 1] = Rotation.from_euler(b.axis_order.lower(), b.axis * angle_scale)
+            c_rot[len(names) - 1] = euler_to_quat(b.axis_order.lower(), b.axis * angle_scale)
             if not children.get(kid):
                 end_sites.append((len(names) - 1, b.direction * b.length * length_scale))
             queue.append((kid, len(names) - 1))

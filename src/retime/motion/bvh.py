@@ -9,16 +9,14 @@ from __future__ import annotations
 
 import io
 import re
-import warnings
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..errors import FormatError
 from ..io_util import atomic_write
 from .fk import rest_height
 from .model import POSITION_CHANNELS, ROTATION_CHANNELS, Motion, Skeleton, guess_meters_per_unit
-from .quat import continuous, euler_to_quat
+from .quat import continuous, euler_to_quat, quat_to_euler
 
 _CHANNEL_NAMES = {c.lower(): c for c in ROTATION_CHANNELS + POSITION_CHANNELS}
 
@@ -298,9 +296,7 @@ def pose_to_channels(skeleton, rotations, translations):
         channels.append(chans)
         seq = "".join(c[0] for c in chans if c in ROTATION_CHANNELS)
         q = continuous(rotations[:, j])
-        with warnings.catch_warnings():  # at gimbal lock SciPy picks one of the equivalent angle sets: fine
-            warnings.simplefilter("ignore", UserWarning)
-            euler = Rotation.from_quat(q).as_euler(seq.upper(), degrees=True)
+        euler = quat_to_euler(seq.upper(), q, degrees=True)
         euler = np.rad2deg(np.unwrap(np.deg2rad(euler), axis=0))
         k = 0
         for c in chans:

@@ -56,6 +56,37 @@ def euler_to_quat(seq: str, angles, degrees=False):
     return q
 
 
+def quat_to_matrix(q):
+    """Rotation matrices (..., 3, 3) of unit quaternions (..., 4)."""
+    x, y, z, w = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=-1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=-1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1),
+    ], axis=-2)
+
+
+def quat_to_euler(seq: str, q, degrees=False):
+    """Intrinsic Tait-Bryan angles (..., 3) for three distinct upper-case axes, e.g. "ZXY":
+    R = R_a(angle0) R_b(angle1) R_c(angle2). The middle angle lies in [-90, 90] degrees; at gimbal lock
+    the last angle is set to 0 (the rotation is still reproduced exactly)."""
+    if len(seq) != 3 or len(set(seq.upper())) != 3 or not seq.isupper():
+        raise ValueError(f"quat_to_euler needs three distinct intrinsic axes, got {seq!r}")
+    i, j, k = ("XYZ".index(c) for c in seq)
+    sign = 1.0 if (j - i) % 3 == 1 else -1.0  # even (cyclic) or odd permutation of XYZ
+    m = quat_to_matrix(q)
+    cos_b = np.hypot(m[..., i, i], m[..., i, j])
+    beta = np.arctan2(sign * m[..., i, k], cos_b)
+    alpha = np.arctan2(-sign * m[..., j, k], m[..., k, k])
+    gamma = np.arctan2(-sign * m[..., i, j], m[..., i, i])
+    lock = cos_b < 1e-9
+    if np.any(lock):
+        alpha = np.where(lock, np.arctan2(sign * m[..., k, j], m[..., j, j]), alpha)
+        gamma = np.where(lock, 0.0, gamma)
+    out = np.stack([alpha, beta, gamma], axis=-1)
+    return np.rad2deg(out) if degrees else out
+
+
 def qnormalize(q):
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
