@@ -43,7 +43,7 @@ from numba import njit, prange
 
 from ..errors import FormatError, RetimeError
 from ..io_util import atomic_write
-from .tree import points_jacobian_transpose
+from .tree import points_jacobian_transpose, support_rows
 
 CONTACT_POINTS = ("left_heel", "left_toe", "right_heel", "right_toe")
 ALIASES = {"left": (0, 1), "right": (2, 3), "both": (0, 1, 2, 3)}
@@ -85,33 +85,38 @@ def friction_edges(mu: float) -> np.ndarray:
 
 
 def corner_jacobians(tree, body, skeleton, R, o):
-    """J^T of unit world forces along x, y, z at each sole corner: (n, nv, 8, 3)."""
+    """J^T of unit world forces along x, y, z at each sole corner, on the rows that can feel them
+    (the legs' and the root's): (rows (R,), jt (n, R, 8, 3))."""
     names, _ = corner_bodies(body)
     x = corner_positions(body, skeleton, R, o)
-    jt = points_jacobian_transpose(tree, R, o, [skeleton.index(n) for n in names], x, np.eye(3)[None])
-    return jt.reshape(jt.shape[0], jt.shape[1], 8, 3)
+    bodies = [skeleton.index(n) for n in names]
+    rows = support_rows(tree, bodies)
+    jt = points_jacobian_transpose(tree, R, o, bodies, x, np.eye(3)[None], rows=rows)
+    return rows, jt.reshape(jt.shape[0], jt.shape[1], 8, 3)
 
 
-def contact_basis(corner_jt, mu, contact):
-    """N = J^T P (n, nv, 32) from corner Jacobians (n, nv, 8, 3), friction ``mu`` and contact
-    states (n, 4); columns of points not in contact are zero."""
-    n, nv = corner_jt.shape[:2]
-    N = np.empty((n, nv, 8 * EDGES_PER_CORNER))
-    _edges(np.ascontiguousarray(corner_jt), friction_edges(mu), np.asarray(contact, dtype=np.bool_), N)
+def contact_basis(corner_jt, mu, contact, rows=None, nv=None):
+    """N = J^T P (n, nv, 32) from corner Jacobians (n, R, 8, 3) on velocity rows ``rows`` (default
+    all), friction ``mu`` and contact states (n, 4); columns of points not in contact are zero."""
+    n, R = corner_jt.shape[:2]
+    rows = np.arange(R) if rows is None else np.asarray(rows, dtype=np.int64)
+    N = np.zeros((n, R if nv is None else nv, 8 * EDGES_PER_CORNER))
+    _edges(np.ascontiguousarray(corner_jt), friction_edges(mu), np.asarray(contact, dtype=np.bool_), rows, N)
     return N
 
 
 @njit(cache=True)
-def _edges(jt, E, contact, out):
-    n, nv, nc, _ = jt.shape
+def _edges(jt, E, contact, rows, out):
+    n, nr, nc, _ = jt.shape
     ne = E.shape[0]
-    for i in prange(n):
-        for c in range(nc):
-            on = contact[i, c // 2]
-            for v in range(nv):
-                for e in range(ne):
-                    out[i, v, c * ne + e] = (jt[i, v, c, 0] * E[e, 0] + jt[i, v, c, 1] * E[e, 1]
-                                             + jt[i, v, c, 2] * E[e, 2]) if on else 0.0
+    for i in range(n):
+        for r in range(nr):
+            v = rows[r]
+            for c in range(nc):
+                if contact[i, c // 2]:
+                    j0, j1, j2 = jt[i, r, c, 0], jt[i, r, c, 1], jt[i, r, c, 2]
+                    for e in range(ne):
+                        out[i, v, c * ne + e] = j0 * E[e, 0] + j1 * E[e, 1] + j2 * E[e, 2]
 
 
 # ---------------------------------------------------------------------------------------------

@@ -111,13 +111,24 @@ class DynamicsTerms:
     R: np.ndarray  # (n, nb, 3, 3) world joint frames
     o: np.ndarray  # (n, nb, 3)
     W: np.ndarray  # (n, 5, nb, 6) per-body wrenches of the a, b, gravity x/y/z terms
-    corner_jt: np.ndarray  # (n, nv, 8, 3) J^T of unit world forces at the sole corners
+    corner_jt: np.ndarray  # (n, R, 8, 3) J^T of unit world forces at the sole corners, rows corner_rows
     contact: np.ndarray  # (n, 4)
+    corner_rows: np.ndarray | None = None  # (R,) velocity rows of corner_jt (the legs and the root)
     corners: np.ndarray | None = None  # (n, 8, 3)
     friction: float = 0.5
     tau_limit: np.ndarray | None = None  # (nv,) symmetric limits at torque scale 1
     tau_ref: np.ndarray | None = None
     lambda_ref: np.ndarray | None = None
+
+    def _contact_basis(self, mu):
+        """N for friction mu, cached (PathDynamics share it: treat it as read-only)."""
+        if self.corner_jt.shape[2] == 0:
+            return np.zeros((len(self.times), self.tree.nv, 0))
+        cache = self.__dict__.setdefault("_N_cache", {})
+        if mu not in cache:
+            cache.clear()
+            cache[mu] = contact_basis(self.corner_jt, mu, self.contact, self.corner_rows, self.tree.nv)
+        return cache[mu]
 
     def joint_torque_limits(self, torque_scale=1.0) -> dict[str, np.ndarray]:
         """{joint: (3,) symmetric limit, N m} of every ball joint, e.g. for ``write_body``."""
@@ -162,8 +173,7 @@ class DynamicsTerms:
         hi[:n_root] = 0.0
         return PathDynamics(
             times=self.times, a=abc[:, 0], b=abc[:, 1], c=abc[:, 2],
-            N=contact_basis(self.corner_jt, mu, self.contact) if self.corner_jt.shape[2] else
-            np.zeros((len(self.times), self.tree.nv, 0)),
+            N=self._contact_basis(mu),
             contact=self.contact, tau_lo=-hi, tau_hi=hi.copy(), n_root=n_root, dof_names=self.tree.dof_names,
             total_mass=float(np.dot(f, self.tree.mass)), gravity=g, friction=mu, fps=self.fps,
             samples_per_frame=self.samples_per_frame,
@@ -298,9 +308,9 @@ def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smooth
     tree = body.tree(sk)
     W = wrenches(tree, kin)
     contact = at_samples(load_contacts(contacts, motion, body, frames), motion.fps, times)
-    corner_jt = corner_jacobians(tree, body, sk, R, o)
+    corner_rows, corner_jt = corner_jacobians(tree, body, sk, R, o)
     terms = DynamicsTerms(tree=tree, body=body, times=times, fps=motion.fps, samples_per_frame=int(samples_per_frame),
-                          R=R, o=o, W=W, corner_jt=corner_jt, contact=contact,
+                          R=R, o=o, W=W, corner_jt=corner_jt, corner_rows=corner_rows, contact=contact,
                           corners=corner_positions(body, sk, R, o), friction=body.friction)
     if reference:
         add_reference(terms)
@@ -325,15 +335,17 @@ def path_dynamics(motion, body=None, gravity=STANDARD_GRAVITY, mass_factors=None
 
 
 def force_timing(motion, repeats=3, **kwargs) -> dict:
-    """Best-of-``repeats`` wall time per source frame (ms) of the Force phase (Fig. 12) for a motion:
+    """Best-of-``repeats`` wall time per source frame (ms) of the Force phase (Fig. 12) for a motion
+    (and the process CPU time, ``force_cpu_ms``, which a busy machine disturbs less; it is one thread):
     body model, path derivatives, kinematics, per-body wrenches, contacts and their Jacobians,
     reference forces and torque limits (:func:`dynamics_terms`), then :meth:`DynamicsTerms.combine`."""
     import time
 
     dynamics_terms(motion.frames(slice(0, min(motion.n_frames, 8))), **kwargs).combine()  # load kernels
-    best = np.inf
+    best, cpu = np.inf, np.inf
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         dynamics_terms(motion, **kwargs).combine()
-        best = min(best, time.perf_counter() - t0)
-    return {"frames": motion.n_frames, "force_ms": 1e3 * best / motion.n_frames}
+        best, cpu = min(best, time.perf_counter() - t0), min(cpu, time.process_time() - c0)
+    return {"frames": motion.n_frames, "force_ms": 1e3 * best / motion.n_frames,
+            "force_cpu_ms": 1e3 * cpu / motion.n_frames}

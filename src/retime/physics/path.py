@@ -67,13 +67,17 @@ def sample_times(n_frames: int, fps: float, samples_per_frame: int = 1) -> np.nd
 def _spline_moments(Y, h):
     """Second derivatives (F, D) at the knots of the not-a-knot cubic spline through Y (F, D) at
     uniform spacing h (F >= 4). For uniform knots not-a-knot gives 6 M_1 = r_1 and
-    6 M_{F-2} = r_{F-2} directly, then a (1, 4, 1) tridiagonal system for the rest."""
+    6 M_{F-2} = r_{F-2} directly, then a (1, 4, 1) tridiagonal system for the rest (Thomas
+    algorithm, all channels at once)."""
     F, D = Y.shape
     M = np.zeros((F, D))
     k = 6.0 / (h * h)
+    for i in range(1, F - 1):  # right-hand sides, kept in M for now
+        for d in range(D):
+            M[i, d] = k * (Y[i - 1, d] - 2.0 * Y[i, d] + Y[i + 1, d])
     for d in range(D):
-        for i in (1, F - 2):
-            M[i, d] = k * (Y[i - 1, d] - 2.0 * Y[i, d] + Y[i + 1, d]) / 6.0
+        M[1, d] /= 6.0
+        M[F - 2, d] /= 6.0
     m = F - 4  # interior unknowns M_2 .. M_{F-3}
     if m > 0:
         cp = np.empty(m)
@@ -83,19 +87,18 @@ def _spline_moments(Y, h):
         for j in range(1, m):
             denom[j] = 4.0 - cp[j - 1]
             cp[j] = 1.0 / denom[j]
-        dp = np.empty(m)
         for d in range(D):
-            for j in range(m):
-                i = j + 2
-                rhs = k * (Y[i - 1, d] - 2.0 * Y[i, d] + Y[i + 1, d])
-                if j == 0:
-                    rhs -= M[1, d]
-                if j == m - 1:
-                    rhs -= M[F - 2, d]
-                dp[j] = (rhs - (dp[j - 1] if j > 0 else 0.0)) / denom[j]
-            M[m + 1, d] = dp[m - 1]
-            for j in range(m - 2, -1, -1):
-                M[j + 2, d] = dp[j] - cp[j] * M[j + 3, d]
+            M[2, d] -= M[1, d]
+            M[F - 3, d] -= M[F - 2, d]
+        for j in range(m):  # forward sweep: M[j+2] <- d'_j
+            i = j + 2
+            for d in range(D):
+                prev = M[i - 1, d] if j > 0 else 0.0
+                M[i, d] = (M[i, d] - prev) / denom[j]
+        for j in range(m - 2, -1, -1):  # back substitution
+            i = j + 2
+            for d in range(D):
+                M[i, d] -= cp[j] * M[i + 1, d]
     for d in range(D):
         M[0, d] = 2.0 * M[1, d] - M[2, d]
         M[F - 1, d] = 2.0 * M[F - 2, d] - M[F - 3, d]

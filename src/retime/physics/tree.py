@@ -66,15 +66,15 @@ class TreeModel:
         self.com = np.ascontiguousarray(self.com, dtype=float).reshape(-1, 3)
         self.inertia = np.ascontiguousarray(self.inertia, dtype=float).reshape(-1, 3, 3)
         nb = len(self.parents)
-        if any(p >= j for j, p in enumerate(self.parents)):
+        if np.any(self.parents >= np.arange(nb)):
             raise ValueError("every parent must come before its children")
-        if any(t == FREE for t in self.jtype[1:]) or any(t == FREE and p >= 0 for t, p in zip(self.jtype, self.parents)):
+        if np.any(self.jtype[1:] == FREE) or (nb and self.jtype[0] == FREE and self.parents[0] >= 0):
             raise ValueError("only a parentless first joint can be FREE")
         for arr, shape in ((self.jtype, (nb,)), (self.offsets, (nb, 3)), (self.mass, (nb,)), (self.com, (nb, 3)),
                            (self.inertia, (nb, 3, 3))):
             if arr.shape != shape:
                 raise ValueError(f"expected shape {shape}, got {arr.shape}")
-        dofs = np.array([JOINT_DOFS[int(t)] for t in self.jtype], dtype=np.int64)
+        dofs = np.select([self.jtype == FREE, self.jtype == SPHERICAL], [6, 3], 0).astype(np.int64)
         start = np.concatenate([[0], np.cumsum(dofs)[:-1]])
         self.vidx = np.where(dofs > 0, start, -1).astype(np.int64)
         self.nv = int(dofs.sum())
@@ -137,7 +137,7 @@ def quat_to_matrix(q: np.ndarray) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------
-# numba kernels (small 3-vector helpers are inlined by LLVM)
+# numba kernels (serial: on a busy 2-core machine numba's parallel launches cost more than they save)
 
 @njit(cache=True, inline="always")
 def _mv(R, v, out):
@@ -261,50 +261,52 @@ def _wrenches(mass, com, inertia, R, o, w, dw, ddo, dwa, ddoa, W):
     the world origin] that the body needs, world coordinates."""
     n = R.shape[0]
     nb = R.shape[1]
-    for i in prange(n):
-        t1 = np.empty(3)
-        t2 = np.empty(3)
-        t3 = np.empty(3)
-        r = np.empty(3)
-        c = np.empty(3)
-        F = np.empty(3)
-        Nm = np.empty(3)
-        Iw = np.empty((3, 3))
+    t1 = np.empty(3)
+    t2 = np.empty(3)
+    t3 = np.empty(3)
+    r = np.empty(3)
+    c = np.empty(3)
+    F = np.empty(3)
+    Nm = np.empty(3)
+    wl = np.empty(3)
+    al = np.empty(3)
+    for i in range(n):
         for j in range(nb):
             Rj = R[i, j]
+            Ij = inertia[j]
             m = mass[j]
             _mv(Rj, com[j], r)
             for a in range(3):
                 c[a] = o[i, j, a] + r[a]
-            for a in range(3):
-                for b in range(3):
-                    s = 0.0
-                    for e in range(3):
-                        s += (Rj[a, 0] * inertia[j, 0, e] + Rj[a, 1] * inertia[j, 1, e]
-                              + Rj[a, 2] * inertia[j, 2, e]) * Rj[b, e]
-                    Iw[a, b] = s
-            # term a
+            # term a: F = m (ddoa + dwa x r), N = R I R^T dwa
             _cross(dwa[i, j], r, t1)
             for a in range(3):
                 F[a] = m * (ddoa[i, j, a] + t1[a])
-            _mv(Iw, dwa[i, j], Nm)
+            _mtv(Rj, dwa[i, j], al)
+            _mv(Ij, al, t2)
+            _mv(Rj, t2, Nm)
             _cross(c, F, t2)
             for a in range(3):
                 W[i, 0, j, a] = F[a]
                 W[i, 0, j, 3 + a] = Nm[a] + t2[a]
-            # term b
+            # term b: F = m (ddo + dw x r + w x (w x r)), N = R (I al + wl x I wl)
             _cross(dw[i, j], r, t1)
             _cross(w[i, j], r, t2)
             _cross(w[i, j], t2, t3)
             for a in range(3):
                 F[a] = m * (ddo[i, j, a] + t1[a] + t3[a])
-            _mv(Iw, w[i, j], t1)
-            _cross(w[i, j], t1, t2)
-            _mv(Iw, dw[i, j], Nm)
+            _mtv(Rj, w[i, j], wl)
+            _mtv(Rj, dw[i, j], al)
+            _mv(Ij, wl, t1)
+            _cross(wl, t1, t2)
+            _mv(Ij, al, t1)
+            for a in range(3):
+                t1[a] += t2[a]
+            _mv(Rj, t1, Nm)
             _cross(c, F, t3)
             for a in range(3):
                 W[i, 1, j, a] = F[a]
-                W[i, 1, j, 3 + a] = Nm[a] + t2[a] + t3[a]
+                W[i, 1, j, 3 + a] = Nm[a] + t3[a]
             # gravity along each world axis: the joints must hold -m e_k at the centre of mass
             for g in range(3):
                 for a in range(3):
@@ -317,25 +319,42 @@ def _wrenches(mass, com, inertia, R, o, w, dw, ddo, dwa, ddoa, W):
 
 
 @njit(cache=True)
-def _project(parents, jtype, vidx, nv, R, o, W, factors, out):
-    """Generalized forces out (n, T, nv) of body wrenches W (n, T, nb, 6) scaled by factors (nb,)."""
+def _project(parents, jtype, vidx, nv, R, o, W, coef, factors, out):
+    """Generalized forces out (n, T, nv) of the wrench combinations sum_k coef[t, k] W[:, k]
+    (W (n, K, nb, 6)), each body's scaled by factors (nb,)."""
     n = W.shape[0]
-    T = W.shape[1]
+    K = W.shape[1]
     nb = W.shape[2]
-    for i in prange(n):
-        S = np.empty((T, nb, 6))
+    T = coef.shape[0]
+    # nonzero coefficients only
+    nz = np.zeros(T, dtype=np.int64)
+    nzk = np.zeros((T, K), dtype=np.int64)
+    nzc = np.zeros((T, K))
+    for t in range(T):
+        for k in range(K):
+            if coef[t, k] != 0.0:
+                nzk[t, nz[t]] = k
+                nzc[t, nz[t]] = coef[t, k]
+                nz[t] += 1
+    S = np.empty((T, nb, 6))
+    m = np.empty(3)
+    for i in range(n):
         for t in range(T):
             for j in range(nb):
                 f = factors[j]
                 for a in range(6):
-                    S[t, j, a] = f * W[i, t, j, a]
+                    S[t, j, a] = 0.0
+                for q in range(nz[t]):
+                    c = nzc[t, q] * f
+                    k = nzk[t, q]
+                    for a in range(6):
+                        S[t, j, a] += c * W[i, k, j, a]
         for j in range(nb - 1, -1, -1):
             p = parents[j]
             if p >= 0:
                 for t in range(T):
                     for a in range(6):
                         S[t, p, a] += S[t, j, a]
-        m = np.empty(3)
         for j in range(nb):
             tj = jtype[j]
             if tj == FIXED:
@@ -358,9 +377,9 @@ def _project(parents, jtype, vidx, nv, R, o, W, factors, out):
 
 
 @njit(cache=True)
-def _points_jt(parents, jtype, vidx, R, o, body, x, dirs, out):
-    """J^T of point forces: out (n, nv, P*E) for points x (n, P, 3) on bodies body (P,), directions
-    dirs (P, E, 3) in world coordinates."""
+def _points_jt(parents, jtype, vidx, R, o, body, x, dirs, rowmap, out):
+    """J^T of point forces: out (n, R, P*E) for points x (n, P, 3) on bodies body (P,), directions
+    dirs (P, E, 3) in world coordinates; velocity row k goes to out row rowmap[k]."""
     n = x.shape[0]
     P = x.shape[1]
     E = dirs.shape[1]
@@ -382,11 +401,11 @@ def _points_jt(parents, jtype, vidx, R, o, body, x, dirs, out):
                         _cross(arm, dv, mom)
                         if tj == FREE:
                             for a in range(3):
-                                out[i, k + a, col] = Rj[0, a] * dv[0] + Rj[1, a] * dv[1] + Rj[2, a] * dv[2]
-                                out[i, k + 3 + a, col] = Rj[0, a] * mom[0] + Rj[1, a] * mom[1] + Rj[2, a] * mom[2]
+                                out[i, rowmap[k + a], col] = Rj[0, a] * dv[0] + Rj[1, a] * dv[1] + Rj[2, a] * dv[2]
+                                out[i, rowmap[k + 3 + a], col] = Rj[0, a] * mom[0] + Rj[1, a] * mom[1] + Rj[2, a] * mom[2]
                         else:
                             for a in range(3):
-                                out[i, k + a, col] = Rj[0, a] * mom[0] + Rj[1, a] * mom[1] + Rj[2, a] * mom[2]
+                                out[i, rowmap[k + a], col] = Rj[0, a] * mom[0] + Rj[1, a] * mom[1] + Rj[2, a] * mom[2]
                 j = parents[j]
 
 
@@ -448,22 +467,45 @@ def body_wrenches(tree: TreeModel, root_pos, quats, qd, qdd):
     return kin.R, kin.o, wrenches(tree, kin)
 
 
-def project(tree: TreeModel, R, o, W, factors=None):
-    """Generalized forces (n, T, nv) of wrenches W (n, T, nb, 6), each body's scaled by factors[j]."""
+def project(tree: TreeModel, R, o, W, factors=None, coef=None):
+    """Generalized forces (n, T, nv) of wrenches W (n, K, nb, 6), each body's scaled by factors[j]:
+    of W itself (T = K), or of the combinations sum_k coef[t, k] W[:, k] (coef (T, K))."""
     factors = np.ones(tree.n_bodies) if factors is None else np.ascontiguousarray(factors, dtype=float)
-    out = np.zeros((W.shape[0], W.shape[1], tree.nv))
-    _project(tree.parents, tree.jtype, tree.vidx, tree.nv, R, o, np.ascontiguousarray(W), factors, out)
+    coef = np.eye(W.shape[1]) if coef is None else np.ascontiguousarray(coef, dtype=float)
+    out = np.zeros((W.shape[0], coef.shape[0], tree.nv))
+    _project(tree.parents, tree.jtype, tree.vidx, tree.nv, R, o, np.ascontiguousarray(W), coef, factors, out)
     return out
 
 
-def points_jacobian_transpose(tree: TreeModel, R, o, body, points, dirs):
+def support_rows(tree: TreeModel, bodies) -> np.ndarray:
+    """Velocity rows (sorted) of the joints that move any of ``bodies``: the only rows where forces
+    on those bodies show up."""
+    rows = set()
+    for j in bodies:
+        j = int(j)
+        while j >= 0:
+            t = int(tree.jtype[j])
+            if t != FIXED:
+                rows.update(range(tree.vidx[j], tree.vidx[j] + JOINT_DOFS[t]))
+            j = int(tree.parents[j])
+    return np.array(sorted(rows), dtype=np.int64)
+
+
+def points_jacobian_transpose(tree: TreeModel, R, o, body, points, dirs, rows=None):
     """Generalized forces (n, nv, P*E) of unit forces along dirs (P, E, 3) (world) applied at world
     points (n, P, 3) fixed to bodies body (P,); column pt*E + e. Equals J_pt^T d with J_pt the
-    LOCAL_WORLD_ALIGNED linear Jacobian of the point (Eq. 10 of McCann et al.)."""
+    LOCAL_WORLD_ALIGNED linear Jacobian of the point (Eq. 10 of McCann et al.). With ``rows``
+    (e.g. :func:`support_rows`) only those rows are returned: (n, len(rows), P*E)."""
     points = np.ascontiguousarray(points, dtype=float)
     dirs = np.ascontiguousarray(np.broadcast_to(dirs, (points.shape[1],) + np.shape(dirs)[-2:]), dtype=float)
-    out = np.zeros((points.shape[0], tree.nv, points.shape[1] * dirs.shape[1]))
-    _points_jt(tree.parents, tree.jtype, tree.vidx, R, o, np.asarray(body, dtype=np.int64), points, dirs, out)
+    body = np.asarray(body, dtype=np.int64)
+    rows = np.arange(tree.nv) if rows is None else np.asarray(rows, dtype=np.int64)
+    rowmap = np.full(tree.nv, -1, dtype=np.int64)
+    rowmap[rows] = np.arange(len(rows))
+    if np.any(rowmap[support_rows(tree, body)] < 0):
+        raise ValueError("rows must include every support row of the bodies")
+    out = np.zeros((points.shape[0], len(rows), points.shape[1] * dirs.shape[1]))
+    _points_jt(tree.parents, tree.jtype, tree.vidx, R, o, body, points, dirs, rowmap, out)
     return out
 
 
