@@ -297,3 +297,9 @@ def test_bvh_structure_errors(capsys, tmp_path, old, new, line, what):
     assert old in SMALL_BVH
     path.write_text(SMALL_BVH.replace(old, new, 1))
     fails_cleanly(capsys, ["info", path], path, what, line=line)
+
+
+def test_convert_checks_its_output_first(capsys, clip):
+    fails_cleanly(capsys, ["convert", clip / "16_15.amc", clip / "o.txt"], ".bvh", out=clip / "o.txt")
+    fails_cleanly(capsys, ["convert", clip / "16_15.amc", clip / "16_15.amc"], ".bvh")
+    fails_cleanly(capsys, ["convert", clip / "16_15.bvh", clip / "16_15.bvh"], "overwrite the input")

@@ -1,6 +1,5 @@
-from ..io_util import check_not_input
 from ..motion import save_bvh
-from .common import add_motion_args, load_input
+from .common import add_motion_args, check_output, load_input
 
 
 def register(sub):
@@ -12,7 +11,7 @@ def register(sub):
 
 
 def run(args):
-    check_not_input(args.output, args.motion, args.asf)
+    check_output(args)  # a .bvh that is not one of the inputs, checked before the (slow) load
     m = load_input(args)
     save_bvh(m, args.output)
     print(f"wrote {args.output}: {m.n_frames} frames at {m.fps:g} fps")
