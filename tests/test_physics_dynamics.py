@@ -329,3 +329,23 @@ def test_chain_matches_pinocchio_and_times_force():
         assert np.allclose(d.a[i], (M @ v)[vmap], atol=1e-9)
     t = force_timing(100, n_frames=20, repeats=1)
     assert t["case"] == "C100" and t["force_ms"] > 0
+
+
+def test_short_and_non_rigid_motions(jump):
+    d = path_dynamics(jump.frames(slice(100, 104)))
+    assert d.a.shape[0] == 4 and np.all(np.isfinite(d.a)) and np.all(np.isfinite(d.tau_hi))
+    from retime.errors import RetimeError
+
+    with pytest.raises(RetimeError, match="at least 4 frames"):
+        path_dynamics(jump.frames(slice(0, 3)))
+    stretched = jump.replace(translations=jump.translations.copy())
+    stretched.translations[7, 3] *= 1.1  # the left knee slides along the femur in frame 7
+    with pytest.raises(RetimeError, match="'ltibia'.*frame 7"):
+        path_dynamics(stretched)
+
+
+def test_force_timing_of_a_clip(jump):
+    from retime.physics.dynamics import force_timing
+
+    t = force_timing(jump.frames(slice(0, 40)), repeats=1)
+    assert t["frames"] == 40 and 0 < t["force_ms"] < 50 and 0 < t["force_cpu_ms"] < 50
