@@ -12,6 +12,14 @@ EPILOG = """examples:
 Open DIR/report.html in a browser; it links to the video, plots, BVH and warp files beside it."""
 
 
+def _frames(text):
+    try:
+        a, b = (int(v) for v in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--frames must look like FIRST:LAST (e.g. 150:406), got {text!r}") from None
+    return a, b
+
+
 def register(sub):
     p = sub.add_parser(
         "demo",
@@ -27,6 +35,7 @@ def register(sub):
     p.add_argument("--scale", type=positive_float, default=0.5, metavar="X", help="output duration as a fraction of the clip's (default 0.5)")
     p.add_argument("--methods", default="linear,guided,physics", metavar="LIST", help="comma-separated methods (default: linear,guided,physics)")
     p.add_argument("--fps", type=positive_float, default=30.0, metavar="HZ", help="video frame rate (default 30)")
+    p.add_argument("--frames", type=_frames, metavar="FIRST:LAST", help="use only these source frames (0-based, inclusive)")
     p.add_argument("--no-video", action="store_true", help="skip the side-by-side video")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
@@ -37,7 +46,7 @@ def run(args):
 
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     result = run_demo(args.output, clip=args.clip, scale=args.scale, methods=methods, fps=args.fps,
-                      video=not args.no_video, quiet=args.quiet)
+                      video=not args.no_video, quiet=args.quiet, frames=args.frames)
     for m in result.methods:
         if m.curve is None:
             print(f"{m.name}: not run ({m.error})", file=sys.stderr)

@@ -43,6 +43,7 @@ def register(sub):
     p.add_argument("--label", action="append", default=[], metavar="NAME", help="panel label, once per panel in order (default: file names)")
     p.add_argument("--report", metavar="REPORT.json", help="physics report: highlight the feet in contact in the panel it belongs to")
     p.add_argument("--size", type=_size, default=(480, 540), metavar="WxH", help="size of one panel in pixels (default 480x540)")
+    p.add_argument("--columns", type=int, metavar="N", help="panels per row (default: all in one row)")
     p.add_argument("--at", type=float, metavar="SEC", help="write a single frame at this time as PNG")
     p.add_argument("--asf", metavar="SKELETON.asf", help="skeleton for .amc files (default: X.asf beside X_NN.amc)")
     p.add_argument("--input-fps", type=positive_float, metavar="HZ", help="frame rate of the motions (AMC: default 120)")
@@ -80,11 +81,13 @@ def run(args):
         contacts[index] = report_contacts(report, panels[index][1].skeleton, panels[index][1].n_frames, args.report)
     tracks = [track_from_motion(m, label, curve=c, contacts=ct) for (_, m, c), label, ct in zip(panels, labels, contacts)]
     if args.at is not None:
-        render_still(tracks, args.output, args.at, fps=args.fps or 30.0, panel_size=args.size)
+        render_still(tracks, args.output, args.at, fps=args.fps or 30.0, panel_size=args.size, columns=args.columns)
         print(f"wrote {args.output}: frame at {args.at:g} s")
         return 0
     fps = args.fps or (25.0 if out_ext == ".gif" else 30.0)
-    info = render_video(tracks, args.output, fps=fps, panel_size=args.size, quiet=args.quiet)
+    if args.columns is not None and args.columns < 1:
+        raise RetimeError(f"--columns must be at least 1, got {args.columns}")
+    info = render_video(tracks, args.output, fps=fps, panel_size=args.size, quiet=args.quiet, columns=args.columns)
     print(f"wrote {args.output}: {info['frames']} frames at {fps:g} fps, {info['duration']:.3f} s, "
           f"{info['width']}x{info['height']}, {len(tracks)} panel(s)")
     return 0

@@ -35,6 +35,8 @@ class MethodResult:
     error: str | None = None
     settings: str = ""
     files: dict = field(default_factory=dict)
+    raw_report: dict | None = None  # the method's own report, as written to disk
+    physics: Any = None  # the physics method's full result (regions, objective)
 
 
 @dataclass
@@ -50,6 +52,7 @@ class DemoResult:
     files: dict
     total_seconds: float
     render_fps: float | None = None
+    frame_range: tuple[int, int] | None = None
 
     @property
     def report_path(self) -> Path:
@@ -128,6 +131,29 @@ def flight_speed(curve, flight: tuple[float, float] | None) -> float | None:
     return (s1 - s0) / (t1 - t0)
 
 
+def feasible_fraction(curve, physics, fps: float) -> float | None:
+    """Share of output frames whose timing (p'', p'^2) lies in the physics feasible region of the
+    source frame they show (the physics report's test, applied to any timing curve)."""
+    if curve is None or physics is None:
+        return None
+    from retime.physics.regions import polygon_distance
+    from retime.physics.report import IN_REGION_TOL
+
+    regions = physics.regions
+    times = np.asarray(regions.times, dtype=np.float64)
+    t = curve.frame_times(fps)
+    s = curve(t)
+    v = np.asarray(curve.speed(t), dtype=np.float64) ** 2
+    h = 0.25 / fps  # p'' by central differences of the speed (one-sided at the ends)
+    tp = np.minimum(t + h, curve.duration)
+    tm = np.maximum(t - h, 0.0)
+    u = (np.asarray(curve.speed(tp)) - np.asarray(curve.speed(tm))) / np.maximum(tp - tm, 1e-12)
+    idx = np.clip(np.rint(np.interp(s, times, np.arange(len(times)))).astype(int), 0, len(times) - 1)
+    inside = [polygon_distance(regions.polygon(int(i)), (float(a), float(b))) <= IN_REGION_TOL
+              for i, a, b in zip(idx, u, v)]
+    return float(np.mean(inside))
+
+
 # ---------------------------------------------------------------------- the methods
 def _call(fn: Callable, motion, duration: float, **extra):
     """Call a method's entry point with the arguments it accepts."""
@@ -162,12 +188,16 @@ def run_guided(motion, duration: float) -> MethodResult:
 
 def run_physics(motion, duration: float) -> MethodResult:
     try:
-        from retime.physics import physics_warp
+        try:
+            from retime.physics import physics_warp
+        except ImportError:
+            from retime.physics.api import physics_warp
     except ImportError as exc:
         return MethodResult("physics", error=f"not available in this installation (retime.physics.physics_warp: {exc.__class__.__name__})")
     start = time.perf_counter()
     out = _call(physics_warp, motion, duration, quiet=True, objective="match")
     seconds = time.perf_counter() - start
+    raw = out
     report = None
     if isinstance(out, tuple):
         curve = out[0]
@@ -182,9 +212,11 @@ def run_physics(motion, duration: float) -> MethodResult:
     if report is not None:
         from retime.viz.regions import normalise_report
 
+        result.raw_report = report
         result.report = normalise_report(report)
         ff = result.report.get("feasible_fraction")
         result.feasible_fraction = None if ff is None else float(ff)
+        result.physics = raw
     return result
 
 
@@ -198,11 +230,14 @@ def run_demo(
     scale: float = 0.5,
     methods=METHODS,
     fps: float = 30.0,
-    panel_size: tuple[int, int] = (400, 460),
+    panel_size: tuple[int, int] = (480, 400),
     video: bool = True,
     quiet: bool = False,
+    frames: tuple[int, int] | None = None,
 ) -> DemoResult:
-    """Run the demo and write ``out_dir/report.html`` with its files beside it."""
+    """Run the demo and write ``out_dir/report.html`` with its files beside it.
+
+    ``frames``: (first, last) source frames to keep (inclusive), to run on part of the clip."""
     from retime.io_util import check_not_input
     from retime.motion import load_motion, save_bvh
     from retime.viz.plot import plot_timing
@@ -226,6 +261,12 @@ def run_demo(
     with progress(steps, "retime demo", quiet, unit="step") as bar:
         bar.set_postfix_str(f"loading {clip_path.name}")
         motion = load_motion(clip_path)
+        if frames is not None:
+            a, b = int(frames[0]), int(frames[1])
+            if not (0 <= a < b < motion.n_frames):
+                raise RetimeError(f"--frames {a}:{b}: the clip has frames 0 to {motion.n_frames - 1}; "
+                                  "give FIRST:LAST with FIRST < LAST")
+            motion = motion.frames(slice(a, b + 1))
         duration = snap_duration(motion.duration * scale, motion.fps)
         flight = flight_phase(motion)
         bar.update(1)
@@ -256,12 +297,20 @@ def run_demo(
 
                     rep = out / f"{stem}_{name}_report.json"
                     with atomic_write(rep, "w") as f:
-                        json.dump(_jsonable(r.report), f)
+                        json.dump(_jsonable(r.raw_report if r.raw_report is not None else r.report), f, indent=1)
                     r.files["report"] = rep.name
             results.append(r)
             bar.update(1)
 
         done = [r for r in results if r.curve is not None]
+        phys_result = next((r.physics for r in done if r.physics is not None), None)
+        for r in done:
+            if r.feasible_fraction is None and phys_result is not None:
+                try:
+                    r.feasible_fraction = feasible_fraction(r.curve, phys_result, motion.fps)
+                except Exception:  # noqa: BLE001 - a number the report can do without
+                    if os.environ.get("RETIME_DEBUG"):
+                        traceback.print_exc()
         files: dict[str, str] = {}
         bar.set_postfix_str("plots")
         if done:
@@ -274,13 +323,26 @@ def run_demo(
         if phys is not None:
             from retime.viz.regions import pick_frame, plot_contact_strip, plot_regions
 
-            plot_contact_strip(phys.report, out / "contacts.png", size=(10.5, 2.2))
-            files["contacts"] = "contacts.png"
-            if any(f["region"] is not None for f in phys.report["frames"]):
-                frame = pick_frame(phys.report)
-                plot_regions(phys.report, frame, out / "region.png")
+            frame = _region_frame(phys.report, motion.fps)
+            if phys.physics is not None and frame is not None:
+                from retime.viz.regions import physics_frame_region
+
+                try:
+                    physics_frame_region(phys.physics, phys.report, frame)
+                except Exception as exc:  # noqa: BLE001 - the plot then shows what the report has
+                    if os.environ.get("RETIME_DEBUG"):
+                        traceback.print_exc()
+                    files["region_note"] = f"objective map unavailable: {exc}"
+            if frame is not None and phys.report["frames"][frame]["region"] is not None:
+                plot_regions(phys.report, frame, out / "region.png",
+                             title=f"{stem}, physics retiming: output frame {frame}")
                 files["region"] = "region.png"
                 files["region_frame"] = str(frame)
+                src = phys.report["frames"][frame]["source_frame"]
+                files["region_source_frame"] = "" if src is None else str(src)
+            else:  # no region to show: the contact and feasibility strip alone
+                plot_contact_strip(phys.report, out / "contacts.png", size=(10.5, 2.2))
+                files["contacts"] = "contacts.png"
         bar.update(1)
 
         render_fps = None
@@ -299,7 +361,7 @@ def run_demo(
                     except RetimeError:
                         contacts = None
                 tracks.append(track_from_motion(r.motion, r.name, curve=r.curve, contacts=contacts))
-            renderer = Renderer(tracks, fps=fps, panel_size=panel_size)
+            renderer = Renderer(tracks, fps=fps, panel_size=panel_size, columns=2 if len(tracks) == 4 else None)
             # poster: the moment the uniformly sped-up clip is in mid-flight
             t_poster = (0.5 * (flight[0] + flight[1]) if flight else 0.5 * motion.duration) * duration / motion.duration
             mid = min(max(int(round(t_poster * fps)), 0), renderer.n_frames - 1)
@@ -320,7 +382,7 @@ def run_demo(
             bar.update(1)
 
         result = DemoResult(
-            out_dir=out, clip=clip_path.name, source_duration=motion.duration, duration=duration, fps=motion.fps,
+            out_dir=out, clip=clip_path.name, frame_range=frames, source_duration=motion.duration, duration=duration, fps=motion.fps,
             n_frames=motion.n_frames, flight=flight, methods=results, files=files,
             total_seconds=0.0, render_fps=render_fps,
         )
@@ -331,6 +393,18 @@ def run_demo(
         write_report(result, scale=scale, video_fps=fps)
         bar.update(1)
     return result
+
+
+def _region_frame(report: dict, fps: float) -> int | None:
+    """The output frame showing source frame 143 (McCann et al.'s Fig. 6 frame of 16_06) if the
+    clip has it, else the output frame in the middle of the clip."""
+    frames = report["frames"]
+    if not frames:
+        return None
+    src = [f["source_frame"] for f in frames]
+    if all(s is not None for s in src) and min(src) <= 143 <= max(src):
+        return int(np.argmin([abs(s - 143) for s in src]))
+    return len(frames) // 2
 
 
 def _jsonable(obj):

@@ -96,7 +96,8 @@ def write_report(result, scale: float, video_fps: float) -> None:
 
     # what was asked
     add('<section id="asked"><h2>What was asked</h2><dl class="facts">')
-    add(f"<dt>clip</dt><dd><code>{_e(r.clip)}</code> (CMU motion capture, {r.n_frames} frames at {r.fps:g} Hz, "
+    part = f"frames {r.frame_range[0]} to {r.frame_range[1]}: " if r.frame_range else ""
+    add(f"<dt>clip</dt><dd><code>{_e(r.clip)}</code> (CMU motion capture, {part}{r.n_frames} frames at {r.fps:g} Hz, "
         f"{r.source_duration:.3f} s)</dd>")
     add(f"<dt>target duration</dt><dd>{r.duration:.3f} s (scale {scale:g}, rounded to whole frames at {r.fps:g} Hz)</dd>")
     if r.flight:
@@ -122,6 +123,8 @@ def write_report(result, scale: float, video_fps: float) -> None:
     warps = " ".join(f"--warp {m.files['warp']}" for m in r.methods if m.files)
     cmds.append(f"retime render {clip_arg} {warps} -o compare.mp4")
     cmds.append(f"retime plot {' '.join(m.files['warp'] for m in r.methods if m.files)} -o timing.png")
+    if r.frame_range:
+        cmds.insert(0, f"# the demo used source frames {r.frame_range[0]} to {r.frame_range[1]} of the clip")
     add('<p class="note" style="margin-top:12px">The same from the command line:</p>')
     add("<pre>" + _e("\n".join(cmds)) + "</pre>")
     add("</section>")
@@ -181,9 +184,15 @@ def write_report(result, scale: float, video_fps: float) -> None:
                 "and whether the chosen timing lies in its feasible region.</p>")
         if files.get("region"):
             add(f'<img class="plot" src="{_href(files["region"])}" alt="feasible region of one frame" style="margin-top:16px">')
-            add(f'<p class="caption">Frame {_e(files["region_frame"])}: the feasible region in the (p\'\', p\'^2) '
-                "plane, the original timing (0, 1) and the chosen timing, over the objective's magnitude "
-                "(McCann et al., Fig. 4 and 6).</p>")
+            src = files.get("region_source_frame")
+            add(f'<p class="caption">Output frame {_e(files["region_frame"])}'
+                + (f" (source frame {_e(src)}; McCann et al. show frame 143 of 16_06 in Fig. 6)" if src else "")
+                + ": the feasible region in the (p'', p'^2) plane, the original timing (0, 1) and the chosen "
+                "timing, over the magnitude of the objective (Eq. 14: squared distance to the region plus "
+                "the torque term; McCann et al., Fig. 4 and 6). Below: per output frame, which heel and toe "
+                "touch the ground and whether the chosen timing lies in its region.</p>")
+            if files.get("region_note"):
+                add(f'<p class="note">{_e(files["region_note"])}</p>')
         add("</section>")
 
     add("<footer>")

@@ -4,20 +4,22 @@ the per-frame contact / feasibility strip, and contact states for the renderer.
 A report (written by ``retime physics --report``) is a JSON object with ``feasible_fraction`` and
 ``frames``, one record per output frame.  The fields read here (other fields are ignored):
 
-    t, s               output and source time of the frame (seconds)
-    pdd, pd2           the chosen timing (p'', p'^2) at the frame
-    feasible           whether (p'', p'^2) lies in the frame's feasible region
+    output_time, source_time   output and source time of the frame (seconds)
+    source_frame       the source frame whose region applies
+    p_ddot, p_dot2     the chosen timing (p'', p'^2) at the frame
+    in_region          whether (p'', p'^2) lies in the frame's feasible region
     distance           distance from (p'', p'^2) to the region (0 inside)
     torque_norm        norm of the joint torques at the chosen timing
-    contacts           names of the contact points (or joints) touching the ground, or a
+    contact            names of the contact points (or joints) touching the ground, or a
                        {name: bool} mapping
     region             optional polygon [[p'', p'^2], ...] of the feasible region
     objective          optional {"pdd": [...], "pd2": [...], "values": [[...]]}: the objective's
                        magnitude on a grid (values[i][j] at pd2[i], pdd[j])
 
-Accepted alternative spellings: ``p_ddot``/``p_dot_sq`` or ``point: [p'', p'^2]`` for the chosen
-timing, ``polygon``/``hull`` for the region, ``in_region`` for feasible.  A report may also carry
-``regions: {frame: {"polygon": ..., "objective": ...}}`` for selected frames.
+Also accepted: ``t``/``s``, ``pdd``/``pd2`` or ``point: [p'', p'^2]``, ``contacts``, ``feasible``,
+``polygon``/``hull`` for the region; ``feasible_fraction`` at the top or in ``summary``.  Regions may
+also be stored once per source frame beside the frames: ``regions: [polygon, ...]`` or
+``{source frame: polygon or {"polygon": ..., "objective": ...}}``.
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ import numpy as np
 
 from retime.errors import FormatError, RetimeError
 
-_POINT_KEYS = (("pdd", "pd2"), ("p_ddot", "p_dot_sq"), ("p_dd", "p_d2"))
+_POINT_KEYS = (("pdd", "pd2"), ("p_ddot", "p_dot2"), ("p_ddot", "p_dot_sq"), ("p_dd", "p_d2"))
 
 
 def load_report(path: str | os.PathLike) -> dict:
@@ -60,18 +62,30 @@ def normalise_report(data: Any, path: str = "<report>") -> dict:
         frames.append(_frame_record(rec, i, path))
     out = dict(data)
     out["frames"] = frames
+    summary = data.get("summary")
+    if isinstance(summary, dict) and "feasible_fraction" in summary and "feasible_fraction" not in out:
+        out["feasible_fraction"] = summary["feasible_fraction"]
+    # regions stored beside the frames: a list or {index: ...}, indexed by source frame when the
+    # frames name their source frame, else by output frame; an entry is a polygon or
+    # {"polygon": ..., "objective": ...}
     regions = data.get("regions") or {}
-    if isinstance(regions, dict):
-        for key, extra in regions.items():
-            try:
-                k = int(key)
-            except (TypeError, ValueError):
+    items = enumerate(regions) if isinstance(regions, list) else regions.items() if isinstance(regions, dict) else ()
+    by_index = {}
+    for key, extra in items:
+        try:
+            by_index[int(key)] = extra if isinstance(extra, dict) else {"polygon": extra}
+        except (TypeError, ValueError):
+            continue
+    if by_index:
+        use_source = all(f["source_frame"] is not None for f in frames)
+        for k, rec in enumerate(frames):
+            extra = by_index.get(rec["source_frame"] if use_source else k)
+            if extra is None:
                 continue
-            if 0 <= k < len(frames) and isinstance(extra, dict):
-                more = _frame_record({**extra}, k, path)
-                for field in ("region", "objective"):
-                    if more.get(field) is not None:
-                        frames[k][field] = more[field]
+            more = _frame_record(dict(extra), k, path)
+            for field in ("region", "objective"):
+                if more.get(field) is not None and rec.get(field) is None:
+                    rec[field] = more[field]
     if "feasible_fraction" not in out:
         flags = [f["feasible"] for f in frames if f["feasible"] is not None]
         out["feasible_fraction"] = float(np.mean(flags)) if flags else None
@@ -121,9 +135,11 @@ def _frame_record(rec: dict, i: int, path: str) -> dict:
     else:
         raise FormatError(path, f"frame {i}: contacts must be a list of names or a {{name: bool}} object")
     feasible = rec.get("feasible", rec.get("in_region"))
+    source_frame = rec.get("source_frame")
     return {
-        "t": _num(rec.get("t", rec.get("time"))),
+        "t": _num(rec.get("t", rec.get("output_time", rec.get("time")))),
         "s": _num(rec.get("s", rec.get("source_time"))),
+        "source_frame": int(source_frame) if isinstance(source_frame, (int, float)) else None,
         "point": point,
         "feasible": None if feasible is None else bool(feasible),
         "distance": _num(rec.get("distance")),
@@ -322,7 +338,7 @@ def plot_regions(report: dict, frame: int | None, path=None, title: str | None =
     ax.set_xlabel("p''  (source acceleration, 1/s)", fontsize=9)
     ax.set_ylabel("p'^2  (squared playback speed)", fontsize=9)
     ax.set_title(f"frame {frame}: feasible region in the (p'', p'^2) plane", fontsize=10, loc="left")
-    ax.legend(frameon=True, framealpha=0.9, fontsize=8, loc="upper left")
+    ax.legend(frameon=True, framealpha=0.9, fontsize=8, loc="best")
 
     # --- numbers for the frame
     ax_info.axis("off")
@@ -341,14 +357,16 @@ def plot_regions(report: dict, frame: int | None, path=None, title: str | None =
         lines.append(("distance to region", f"{rec['distance']:.4g}"))
     if rec["torque_norm"] is not None:
         lines.append(("torque norm", f"{rec['torque_norm']:.4g}"))
-    lines.append(("contacts", ", ".join(rec["contacts"]) if rec["contacts"] else "none (flight)"))
+    contacts = rec["contacts"] or []
+    lines.append(("contacts", "\n".join(", ".join(contacts[i:i + 2]) for i in range(0, len(contacts), 2)) or "none (flight)"))
     ff = report.get("feasible_fraction")
     if ff is not None:
         lines.append(("feasible fraction (clip)", f"{float(ff):.3f}"))
-    for i, (k, v) in enumerate(lines):
-        y = 0.95 - i * 0.085
+    y = 0.95
+    for k, v in lines:
         ax_info.text(0.02, y, k, fontsize=9.5, color="#6b7280", transform=ax_info.transAxes, va="top")
-        ax_info.text(0.48, y, v, fontsize=9.5, color="#111827", transform=ax_info.transAxes, va="top", wrap=True)
+        ax_info.text(0.48, y, v, fontsize=9.5, color="#111827", transform=ax_info.transAxes, va="top", linespacing=1.4)
+        y -= 0.085 * (1 + v.count("\n"))
 
     # --- per-frame strip
     _contact_strip(ax_strip, report, frame)
@@ -411,3 +429,36 @@ def plot_contact_strip(report: dict, path=None, size=(10.0, 2.2), dpi=120):
     if path is not None:
         save_figure(fig, path)
     return fig
+
+
+# ---------------------------------------------------------------------- from a physics result
+def physics_frame_region(result, report: dict, frame: int, n: int = 120) -> None:
+    """Fill ``report['frames'][frame]`` with its region polygon and the objective on a grid.
+
+    ``result`` is a ``retime.physics`` result (``regions`` and ``objective``); the objective's
+    magnitude at (p'', p'^2) is Eq. 14's integrand: alpha times the squared distance to the region
+    plus the torque term, as McCann et al. show it in Fig. 6.
+    """
+    from retime.physics.objective import frame_terms
+
+    rec = report["frames"][frame]
+    i = rec["source_frame"]
+    if i is None:
+        raise RetimeError("the report does not name the source frame of each output frame")
+    poly = np.asarray(result.regions.polygon(i), dtype=np.float64).reshape(-1, 2)
+    rec["region"] = poly
+    pts = [(0.0, 1.0)] + ([rec["point"]] if rec["point"] is not None else []) + poly.tolist()
+    pts = np.array(pts)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    span = np.maximum(hi - lo, 0.5)
+    lo, hi = lo - 0.35 * span, hi + 0.35 * span
+    lo[1] = max(lo[1], -0.05 * span[1])
+    U = np.linspace(lo[0], hi[0], n)
+    V = np.linspace(lo[1], hi[1], n)
+    obj = result.objective
+    Z = np.empty((n, n))
+    for a, v in enumerate(V):
+        for b, u in enumerate(U):
+            d, f = frame_terms(obj, i, u, v)
+            Z[a, b] = obj.alpha * d * d + f
+    rec["objective"] = {"pdd": U, "pd2": V, "values": Z}

@@ -243,7 +243,8 @@ class Panel:
 class Renderer:
     """Draws ``tracks`` side by side at ``fps``; ``frame(k)`` returns an (H, W, 3) uint8 image.
 
-    All panels share the output clock: frame k shows time k / fps in every panel; a track that is
+    Panels are laid out in ``columns`` columns (default: all in one row).  All panels share the
+    output clock: frame k shows time k / fps in every panel; a track that is
     shorter than the longest holds its last pose (its clock stops and is shown as finished).
     """
 
@@ -255,7 +256,7 @@ class Renderer:
         camera_distance: float | None = None,
         follow_sigma: float | None = 0.35,
         show_timeline: bool = True,
-        title: str | None = None,
+        columns: int | None = None,
     ):
         if not tracks:
             raise RetimeError("nothing to render: no motion given")
@@ -273,7 +274,6 @@ class Renderer:
         self.n_frames = frame_count(self.duration, self.fps)
         self.times = np.minimum(np.arange(self.n_frames) / self.fps, self.duration)
         self.show_timeline = show_timeline
-        self.title = title
         self.timeline_h = 58 if show_timeline else 0
         S = _SS
         self._font_label = _font(17 * S, bold=True)
@@ -282,8 +282,11 @@ class Renderer:
         # each panel looks across its own direction of travel; retimed versions of one motion
         # share their path, hence the same view, so they compare directly
         self.panels = [self._make_panel(t, i, camera_distance, follow_sigma) for i, t in enumerate(self.tracks)]
-        self.width = self.panel_w * len(self.panels)
-        self.height = self.panel_h
+        n = len(self.panels)
+        self.columns = n if not columns else max(1, min(int(columns), n))
+        self.rows = -(-n // self.columns)
+        self.width = self.panel_w * self.columns
+        self.height = self.panel_h * self.rows
 
     # ------------------------------------------------------------------ setup
     def _make_panel(self, track: Track, index: int, camera_distance, follow_sigma) -> Panel:
@@ -560,16 +563,18 @@ class Renderer:
             raise IndexError(k)
         S = _SS
         if len(self.panels) == 1:
-            big = self._draw_panel(self.panels[0], k)
-        else:
-            big = Image.new("RGB", (self.width * S, self.height * S), (255, 255, 255))
-            for i, panel in enumerate(self.panels):
-                big.paste(self._draw_panel(panel, k), (i * self.panel_w * S, 0))
-            dr = ImageDraw.Draw(big)
-            for i in range(1, len(self.panels)):
-                x = i * self.panel_w * S
-                dr.line([x, 0, x, big.height], fill=(214, 219, 226), width=S)
-        return big.reduce(S)
+            return self._draw_panel(self.panels[0], k).reduce(S)
+        out = Image.new("RGB", (self.width, self.height), (255, 255, 255))
+        dr = ImageDraw.Draw(out)
+        for i, panel in enumerate(self.panels):
+            row, col = divmod(i, self.columns)
+            x, y = col * self.panel_w, row * self.panel_h
+            out.paste(self._draw_panel(panel, k).reduce(S), (x, y))
+            if col > 0:
+                dr.line([x, y, x, y + self.panel_h], fill=(214, 219, 226), width=1)
+            if row > 0:
+                dr.line([x, y, x + self.panel_w, y], fill=(214, 219, 226), width=1)
+        return out
 
     def frame(self, k: int) -> np.ndarray:
         return np.asarray(self.frame_image(k))
