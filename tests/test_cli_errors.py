@@ -303,3 +303,24 @@ def test_convert_checks_its_output_first(capsys, clip):
     fails_cleanly(capsys, ["convert", clip / "16_15.amc", clip / "o.txt"], ".bvh", out=clip / "o.txt")
     fails_cleanly(capsys, ["convert", clip / "16_15.amc", clip / "16_15.amc"], ".bvh")
     fails_cleanly(capsys, ["convert", clip / "16_15.bvh", clip / "16_15.bvh"], "overwrite the input")
+
+
+@pytest.mark.parametrize("old,new,line,what", [
+    ("  length 0.45", "  length 0", 7, "length unit must be a positive"),
+    ("     axis 0 0 20  XYZ", "     axis 0 0 20  XYQ", 30, "permutation of XYZ"),
+    ("    dof rx ry rz", "    dof rx ry rw", 31, "unknown dof 'rw'"),
+    ("     length 7.78223   ", "     length -7.78223", 40, "must not be negative"),
+    ("     direction 0.34202 -0.939693 0   ", "     direction 0.34202 -0.939693", 39, "direction needs 3 numbers"),
+    ("     direction 0.34202 -0.939693 0   ", "     direction 0.34202 nan 0", 39, "not finite"),
+    ("     length 7.78223   ", "", 36, "no length"),
+    ("     name ltibia", "     name lfemur", 36, "defined twice"),
+    ("    lfemur ltibia", "    lfemur lshin", None, "unknown bone 'lshin'"),
+    ("   order TX TY TZ RX RY RZ", "   order TX TY TZ RX RY RQ", 13, "root order"),
+])
+def test_asf_errors(capsys, clip, old, new, line, what):
+    path = clip / "16.asf"
+    lines = path.read_text().splitlines()
+    assert old in lines, old
+    lines[lines.index(old)] = new
+    write_lines(path, lines)
+    fails_cleanly(capsys, ["info", clip / "16_15.amc"], path, what, line=line)

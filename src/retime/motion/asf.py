@@ -130,6 +130,8 @@ def read_asf(path) -> Asf:
                         bone.direction = bone.direction / norm
                 elif key == "length":
                     bone.length = _numbers(path, tokens[1:2], 1, lineno, "length")[0]
+                    if bone.length < 0:
+                        raise FormatError(path, f"bone length must not be negative, got {tokens[1]}", lineno)
                 elif key == "axis":
                     bone.axis = _numbers(path, tokens[1:4], 3, lineno, "axis")
                     bone.axis_order = _axis_order(path, tokens[4], lineno) if len(tokens) > 4 else "XYZ"
