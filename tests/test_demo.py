@@ -17,11 +17,15 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-backg
                  "--disable-component-update", "--disable-sync", "--no-first-run"]
 
 
+# the jump of 16_06 (crouch, flight, landing) without most of the standing start: a faster
+# configuration of the real demo (all methods, small panels, 10 fps video)
+FRAMES = (180, 406)
+
+
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory):
-    """A smaller, faster configuration of the real demo (all methods, small panels, 10 fps video)."""
     out = tmp_path_factory.mktemp("demo")
-    return run_demo(out, fps=10, panel_size=(240, 280), quiet=True)
+    return run_demo(out, fps=10, panel_size=(240, 200), quiet=True, frames=FRAMES)
 
 
 def test_demo_writes_report_and_files(demo):
@@ -51,7 +55,8 @@ def test_demo_video_has_the_longest_duration(demo):
         frames = list(c.decode(video=0))
     n_panels = 1 + sum(m.curve is not None for m in demo.methods)
     assert len(frames) == round(demo.source_duration * 10) + 1
-    assert (frames[0].width, frames[0].height) == (240 * n_panels, 280)
+    cols = 2 if n_panels == 4 else n_panels
+    assert (frames[0].width, frames[0].height) == (240 * cols, 200 * (-(-n_panels // cols)))
 
 
 def test_linear_flight_speed_is_the_uniform_speed(demo):
@@ -60,6 +65,28 @@ def test_linear_flight_speed_is_the_uniform_speed(demo):
     s0, s1 = demo.flight
     assert 0.15 < s1 - s0 < 0.8
     assert lin.flight_speed == pytest.approx(demo.source_duration / demo.duration, rel=1e-6)
+
+
+def test_all_three_methods_ran(demo):
+    """guided and physics are part of the package: the demo must run them, not skip them."""
+    errors = {m.name: m.error for m in demo.methods if m.curve is None}
+    assert not errors, errors
+    assert [m.name for m in demo.methods] == ["linear", "guided", "physics"]
+    assert (demo.out_dir / "region.png").is_file()
+
+
+def test_feasible_fraction_agrees_with_the_physics_report(demo):
+    """The demo's feasibility test, applied to the physics curve, gives the physics report's number
+    (two independent computations of p', p'' and the region test)."""
+    from retime.report.demo import feasible_fraction
+
+    phys = next(m for m in demo.methods if m.name == "physics")
+    if phys.physics is None:
+        pytest.skip("the physics method returned no regions")
+    mine = feasible_fraction(phys.curve, phys.physics, demo.fps)
+    assert mine == pytest.approx(phys.feasible_fraction, abs=0.05)
+    for m in demo.methods:
+        assert 0.0 <= m.feasible_fraction <= 1.0
 
 
 def test_flight_speed_of_a_curve_that_keeps_the_flight():
