@@ -208,3 +208,12 @@ def test_variety_round_trips_through_the_writer(seed, tmp_path):
     m2 = load_motion(tmp_path / "b.bvh")
     np.testing.assert_allclose(forward_kinematics(m2)[0], forward_kinematics(m)[0], atol=1e-5)
     np.testing.assert_allclose(end_site_positions(m2), end_site_positions(m), atol=1e-5)
+
+
+@pytest.mark.parametrize("frames_word,time_word", [("FRAMES:", "FRAME TIME:"), ("Frames :", "FrameTime:"), ("frames:", "Frame  Time :")])
+def test_motion_header_spellings(frames_word, time_word, tmp_path):
+    spec = random_bvh(31)
+    text = bvh_text(*spec[:5], end_sites=spec[5]).replace("Frames:", frames_word).replace("Frame Time:", time_word)
+    path = tmp_path / "a.bvh"
+    path.write_text(text)
+    check_against_reference(path, *spec, fps=30.0)

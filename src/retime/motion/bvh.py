@@ -164,7 +164,7 @@ def _floats(path, tokens, lineno, what):
     return vals
 
 
-_HEADER = re.compile(r"^(frames\s*:|frame\s+time\s*:)\s*(\S*)", re.IGNORECASE)
+_HEADER = re.compile(r"^(frames\s*:|frame\s*time\s*:)\s*(\S*)", re.IGNORECASE)
 
 
 def read_bvh(path, fps=None) -> Motion:
