@@ -175,3 +175,39 @@ def test_render_speed_one_skeleton(figure):
         r.frame(k)
     fps = r.n_frames / (time.perf_counter() - start)
     assert fps > 30, f"rendering is too slow: {fps:.1f} frames/s"
+
+
+def test_report_contacts_follow_the_source_frames(tmp_path):
+    """Contacts are per source frame: a panel played through a curve shows those of the frame it shows."""
+    import json
+
+    from retime.cli import main
+    from retime.data import bundled_path
+    from retime.motion import load_motion
+    from retime.viz.regions import contacts_through_curve, normalise_report, report_source_contacts
+    from retime.warp import uniform_warp
+
+    m = load_motion(bundled_path("16_06.amc")).frames(slice(0, 121))  # 1 s
+    curve = uniform_warp(m.duration, 0.5)  # 61 frames at 120 Hz, each showing source frame 2k
+    frames = [{"output_time": k / 120, "source_frame": 2 * k,
+               "contact": ["left_heel", "left_toe"] if k < 30 else ["right_toe"]} for k in range(61)]
+    report = normalise_report({"frames": frames})
+    src = report_source_contacts(report, m.skeleton, m.n_frames)
+    lfoot, ltoes, rtoes = (m.skeleton.index(n) for n in ("lfoot", "ltoes", "rtoes"))
+    assert src[58, lfoot] and src[58, ltoes] and not src[58, rtoes]
+    assert src[59, lfoot]  # not shown: nearest shown frame is 58
+    assert src[61, rtoes] and not src[61, lfoot]  # nearest shown frame is 60
+    played = contacts_through_curve(src, m.fps, curve, 61, 120.0)
+    np.testing.assert_array_equal(played, src[::2])
+    # the CLI draws them (the report beside the warp)
+    path = tmp_path / "report.json"
+    path.write_text(json.dumps({"frames": frames}))
+    warp = tmp_path / "half.csv"
+    curve.to_csv(warp, 120.0)
+    out = tmp_path / "c.png"
+    assert main(["render", str(bundled_path("16_06.amc")), "--warp", str(warp), "--report", str(path),
+                 "--at", "0.1", "-o", str(out), "--size", "240x270"]) == 0
+    from PIL import Image
+
+    img = np.asarray(Image.open(out).convert("RGB")).astype(int)
+    assert np.sum(np.all(np.abs(img - CONTACT_COLOR) < 30, axis=-1)) > 20

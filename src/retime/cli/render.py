@@ -74,11 +74,7 @@ def run(args):
     labels = args.label or [p[0] for p in panels]
     contacts = [None] * len(panels)
     if args.report:
-        from ..viz.regions import load_report, report_contacts
-
-        report = load_report(args.report)
-        index = _report_panel(report, panels, args.report)
-        contacts[index] = report_contacts(report, panels[index][1].skeleton, panels[index][1].n_frames, args.report)
+        contacts = _contacts(args, panels, motions)
     tracks = [track_from_motion(m, label, curve=c, contacts=ct) for (_, m, c), label, ct in zip(panels, labels, contacts)]
     if args.at is not None:
         render_still(tracks, args.output, args.at, fps=args.fps or 30.0, panel_size=args.size, columns=args.columns)
@@ -91,6 +87,30 @@ def run(args):
     print(f"wrote {args.output}: {info['frames']} frames at {fps:g} fps, {info['duration']:.3f} s, "
           f"{info['width']}x{info['height']}, {len(tracks)} panel(s)")
     return 0
+
+
+def _contacts(args, panels, motions):
+    """Contacts per panel from a physics report: on every panel showing the first motion (itself or
+    through a --warp) when the report names its source frames, else on the panel it was written for."""
+    from ..viz.regions import contacts_through_curve, load_report, report_contacts, report_source_contacts
+
+    report = load_report(args.report)
+    first = motions[0]
+    if all(f["source_frame"] is not None for f in report["frames"]):
+        src = report_source_contacts(report, first.skeleton, first.n_frames, args.report)
+        out = []
+        for i, (_, m, curve) in enumerate(panels):
+            if curve is not None:
+                out.append(contacts_through_curve(src, first.fps, curve, m.n_frames, m.fps))
+            elif i == 0:
+                out.append(src)
+            else:
+                out.append(None)
+        return out
+    index = _report_panel(report, panels, args.report)
+    out = [None] * len(panels)
+    out[index] = report_contacts(report, panels[index][1].skeleton, panels[index][1].n_frames, args.report)
+    return out
 
 
 def _report_panel(report, panels, path) -> int:

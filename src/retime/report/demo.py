@@ -350,16 +350,22 @@ def run_demo(
             bar.set_postfix_str("video")
             from retime.viz.render import Renderer, VideoWriter, track_from_motion
 
-            tracks = [track_from_motion(motion, "original")]
+            # feet in contact (from the physics report) highlighted in every panel
+            src_contacts = None
+            if phys is not None:
+                from retime.viz.regions import report_source_contacts
+
+                try:
+                    src_contacts = report_source_contacts(phys.report, motion.skeleton, motion.n_frames)
+                except RetimeError:
+                    src_contacts = None
+            tracks = [track_from_motion(motion, "original", contacts=src_contacts)]
             for r in done:
                 contacts = None
-                if r.report is not None:
-                    from retime.viz.regions import report_contacts
+                if src_contacts is not None:
+                    from retime.viz.regions import contacts_through_curve
 
-                    try:
-                        contacts = report_contacts(r.report, r.motion.skeleton, r.motion.n_frames)
-                    except RetimeError:
-                        contacts = None
+                    contacts = contacts_through_curve(src_contacts, motion.fps, r.curve, r.motion.n_frames, r.motion.fps)
                 tracks.append(track_from_motion(r.motion, r.name, curve=r.curve, contacts=contacts))
             renderer = Renderer(tracks, fps=fps, panel_size=panel_size, columns=2 if len(tracks) == 4 else None)
             # poster: the moment the uniformly sped-up clip is in mid-flight

@@ -203,6 +203,34 @@ def report_contacts(report: dict, skeleton, n_frames: int, path: str = "<report>
     return out
 
 
+def report_source_contacts(report: dict, skeleton, n_source: int, path: str = "<report>") -> np.ndarray:
+    """(n_source, J) bool: contact joints per *source* frame, from the frames' ``source_frame``
+    (source frames no output frame shows take the nearest one that is shown)."""
+    frames = report["frames"]
+    src = [f["source_frame"] for f in frames]
+    if any(s is None for s in src):
+        raise RetimeError(f"{path}: the report does not name the source frame of each output frame")
+    per_output = report_contacts(report, skeleton, len(frames), path)
+    known = np.full(n_source, -1, dtype=np.int64)
+    for k, i in enumerate(src):
+        if 0 <= i < n_source:
+            known[i] = k
+    shown = np.nonzero(known >= 0)[0]
+    if len(shown) == 0:
+        raise RetimeError(f"{path}: the report's source frames do not fit a motion of {n_source} frames")
+    nearest = shown[np.clip(np.searchsorted(shown, np.arange(n_source)), 0, len(shown) - 1)]
+    left = shown[np.clip(np.searchsorted(shown, np.arange(n_source)) - 1, 0, len(shown) - 1)]
+    pick = np.where(np.abs(left - np.arange(n_source)) <= np.abs(nearest - np.arange(n_source)), left, nearest)
+    return per_output[known[pick]]
+
+
+def contacts_through_curve(source_contacts: np.ndarray, source_fps: float, curve, n_frames: int, fps: float) -> np.ndarray:
+    """Per-frame contacts of a motion played through ``curve``: those of the source frame shown."""
+    t = np.minimum(np.arange(n_frames) / fps, curve.duration)
+    idx = np.clip(np.rint(np.asarray(curve(t)) * source_fps).astype(int), 0, len(source_contacts) - 1)
+    return source_contacts[idx]
+
+
 def contact_names(report: dict) -> list[str]:
     seen: dict[str, None] = {}
     for rec in report["frames"]:

@@ -53,7 +53,7 @@ def method_color(label: str, index: int) -> tuple[int, int, int]:
     """Accent colour for a panel: fixed for the method names, else from a palette."""
     key = label.strip().lower()
     for name, color in METHOD_COLORS.items():
-        if key.startswith(name):
+        if name in key:
             return color
     return PALETTE[index % len(PALETTE)]
 
@@ -520,7 +520,7 @@ class Renderer:
         if contacts is not None:
             for j in np.nonzero(contacts[k])[0]:
                 x, y = xy[j]
-                r = max(bone_w[j] * 0.9, 4 * S)
+                r = max(bone_w[j] * 0.75, 3 * S)
                 dr.ellipse([x - r, y - r, x + r, y + r], fill=CONTACT_COLOR, outline=(120, 80, 0), width=S)
         self._draw_text(panel, dr, k)
         if self.show_timeline:
