@@ -296,8 +296,14 @@ def run_demo(
                     from retime.io_util import atomic_write
 
                     rep = out / f"{stem}_{name}_report.json"
+                    data = dict(r.raw_report if r.raw_report is not None else r.report)
+                    regions = getattr(r.physics, "regions", None)
+                    if regions is not None and "regions" not in data:
+                        # the polygons per source frame, so that `retime plot --regions` can draw any frame
+                        data["regions"] = [np.round(np.asarray(regions.polygon(i), dtype=float), 6).tolist()
+                                           for i in range(regions.n_frames)]
                     with atomic_write(rep, "w") as f:
-                        json.dump(_jsonable(r.raw_report if r.raw_report is not None else r.report), f, indent=1)
+                        json.dump(_jsonable(data), f, indent=1)
                     r.files["report"] = rep.name
             results.append(r)
             bar.update(1)
