@@ -182,13 +182,50 @@ class DynamicsTerms:
 
 
 @njit(cache=True)
+def _solve_subset(G, h, idx, m, out, L, y):
+    """out[idx[:m]] = solution of G[idx, idx] x = h[idx] by Cholesky (G positive definite)."""
+    for a in range(m):
+        for b in range(a + 1):
+            acc = G[idx[a], idx[b]]
+            for c in range(b):
+                acc -= L[a, c] * L[b, c]
+            if a == b:
+                L[a, a] = np.sqrt(max(acc, 1e-300))
+            else:
+                L[a, b] = acc / L[b, b]
+    for a in range(m):
+        acc = h[idx[a]]
+        for c in range(a):
+            acc -= L[a, c] * y[c]
+        y[a] = acc / L[a, a]
+    for a in range(m - 1, -1, -1):
+        acc = y[a]
+        for c in range(a + 1, m):
+            acc -= L[c, a] * y[c]
+        y[a] = acc / L[a, a]
+    for a in range(len(out)):
+        out[a] = 0.0
+    for a in range(m):
+        out[idx[a]] = y[a]
+
+
+@njit(cache=True)
 def _nnls_gram(G, h, tol):
     """min 0.5 x'Gx - h'x subject to x >= 0 for positive definite G (Lawson-Hanson active set)."""
     k = len(h)
     x = np.zeros(k)
+    s = np.zeros(k)
+    grad = np.empty(k)
     passive = np.zeros(k, dtype=np.bool_)
+    idx = np.empty(k, dtype=np.int64)
+    L = np.zeros((k, k))
+    y = np.empty(k)
     for _ in range(3 * k + 10):
-        grad = h - G @ x
+        for a in range(k):
+            acc = h[a]
+            for b in range(k):
+                acc -= G[a, b] * x[b]
+            grad[a] = acc
         best = -1
         top = tol
         for j in range(k):
@@ -199,18 +236,29 @@ def _nnls_gram(G, h, tol):
             break
         passive[best] = True
         for _inner in range(3 * k + 10):
-            idx = np.flatnonzero(passive)
-            s = np.zeros(k)
-            s[idx] = np.linalg.solve(G[idx][:, idx], h[idx])
-            if np.all(s[idx] > 0):
-                x = s
+            m = 0
+            for j in range(k):
+                if passive[j]:
+                    idx[m] = j
+                    m += 1
+            _solve_subset(G, h, idx, m, s, L, y)
+            feasible = True
+            for a in range(m):
+                if s[idx[a]] <= 0.0:
+                    feasible = False
+            if feasible:
+                for j in range(k):
+                    x[j] = s[j]
                 break
             alpha = 1.0
-            for j in idx:
+            for a in range(m):
+                j = idx[a]
                 if s[j] <= 0 and x[j] - s[j] > 0:
                     alpha = min(alpha, x[j] / (x[j] - s[j]))
-            x = x + alpha * (s - x)
-            for j in idx:
+            for j in range(k):
+                x[j] += alpha * (s[j] - x[j])
+            for a in range(m):
+                j = idx[a]
                 if x[j] <= 1e-12 * (1.0 + abs(s[j])):
                     passive[j] = False
                     x[j] = 0.0
@@ -220,8 +268,8 @@ def _nnls_gram(G, h, tol):
 @njit(cache=True)
 def _reference_forces(w, N, weight, ridge, lam):
     n, nv, K = N.shape
-    for i in prange(n):
-        cols = np.zeros(K, dtype=np.int64)
+    cols = np.zeros(K, dtype=np.int64)
+    for i in range(n):
         m = 0
         for k in range(K):
             for v in range(nv):
@@ -231,19 +279,24 @@ def _reference_forces(w, N, weight, ridge, lam):
                     break
         if m == 0:
             continue
-        A = np.empty((nv, m))
-        for a in range(m):
-            for v in range(nv):
-                A[v, a] = N[i, v, cols[a]] * weight[v]
-        y = w[i] * weight
-        G = A.T @ A
+        G = np.zeros((m, m))
+        h = np.zeros(m)
+        for v in range(nv):
+            w2 = weight[v] * weight[v]
+            for a in range(m):
+                na = N[i, v, cols[a]] * w2
+                h[a] += na * w[i, v]
+                for b in range(a + 1):
+                    G[a, b] += na * N[i, v, cols[b]]
         scale = 0.0
         for a in range(m):
             scale += G[a, a]
+            for b in range(a):
+                G[b, a] = G[a, b]
         scale /= m
         for a in range(m):
             G[a, a] += ridge * scale
-        x = _nnls_gram(G, A.T @ y, 1e-10 * scale)
+        x = _nnls_gram(G, h, 1e-10 * scale)
         for a in range(m):
             lam[i, cols[a]] = x[a]
 

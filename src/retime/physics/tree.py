@@ -139,19 +139,19 @@ def quat_to_matrix(q: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 # numba kernels (serial: on a busy 2-core machine numba's parallel launches cost more than they save)
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _mv(R, v, out):
     for r in range(3):
         out[r] = R[r, 0] * v[0] + R[r, 1] * v[1] + R[r, 2] * v[2]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _mtv(R, v, out):
     for r in range(3):
         out[r] = R[0, r] * v[0] + R[1, r] * v[1] + R[2, r] * v[2]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _cross(a, b, out):
     x = a[1] * b[2] - a[2] * b[1]
     y = a[2] * b[0] - a[0] * b[2]
@@ -161,7 +161,7 @@ def _cross(a, b, out):
     out[2] = z
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _quat_matrix(q, out):
     x, y, z, w = q[0], q[1], q[2], q[3]
     s = 2.0 / (x * x + y * y + z * z + w * w)
