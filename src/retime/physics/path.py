@@ -113,12 +113,21 @@ def _spline_eval(Y, M, h, s, X0, X1, X2):
         i = min(max(int(np.floor(s[q] / h)), 0), F - 2)
         u = s[q] - i * h  # time since knot i
         v = h - u  # time to knot i+1
+        # X0 = ca M_i + cb M_i+1 + v/h y_i + u/h y_i+1, and so on
+        ca0 = (v * v * v / h - h * v) / 6.0
+        cb0 = (u * u * u / h - h * u) / 6.0
+        ya0 = v / h
+        yb0 = u / h
+        ca1 = -v * v / (2 * h) + h / 6.0
+        cb1 = u * u / (2 * h) - h / 6.0
+        ca2 = v / h
+        cb2 = u / h
         for d in range(D):
             a, b = M[i, d], M[i + 1, d]
             ya, yb = Y[i, d], Y[i + 1, d]
-            X0[q, d] = (a * v ** 3 + b * u ** 3) / (6 * h) + (ya / h - a * h / 6) * v + (yb / h - b * h / 6) * u
-            X1[q, d] = (-a * v * v + b * u * u) / (2 * h) + (yb - ya) / h - (b - a) * h / 6
-            X2[q, d] = (a * v + b * u) / h
+            X0[q, d] = ca0 * a + cb0 * b + ya0 * ya + yb0 * yb
+            X1[q, d] = ca1 * a + cb1 * b + (yb - ya) / h
+            X2[q, d] = ca2 * a + cb2 * b
 
 
 @njit(cache=True)
