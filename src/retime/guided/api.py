@@ -128,9 +128,14 @@ def _upsampling(src, pos, A, s, self_reference, upsample, free):
         if free:
             ups.append(1 if self_reference else 4)
             continue
-        speed = (src[q + 1] - src[q]) * A / (pos[q + 1] - pos[q])  # input frames per output frame
-        want = 1.0 if self_reference else 2.0  # grid frames per output frame at least
-        ups.append(max(1, int(math.ceil(want / speed - 1e-9))))
+        # grid frames the segment needs: one per output frame (compression with itself as the
+        # reference), about two with another reference (so the warp can also slow down)
+        M = pos[q + 1] - pos[q]
+        need = M if self_reference else max(M, 2 * M - 2)
+        u = 1
+        while round((src[q + 1] - src[q]) * A * u) < need:
+            u += 1
+        ups.append(u)
     return ups
 
 

@@ -1,0 +1,77 @@
+"""``retime guided``: guided time warping (Hsu, da Silva, Popović 2007)."""
+from __future__ import annotations
+
+import argparse
+
+from ..errors import RetimeError
+from ..motion import load_motion
+from ..warp import apply_timing
+from .common import add_duration_args, add_motion_args, add_output_args, check_output, load_input, positive_float, write_outputs
+from ..io_util import check_not_input
+
+
+def register(sub):
+    p = sub.add_parser(
+        "guided", help="retime so that local velocities and accelerations match a reference (Hsu et al. 2007)",
+        description=(
+            "Guided time warping: the warp through the keytimes whose local velocities and accelerations "
+            "best match a reference motion, found exactly by dynamic programming. The default reference is the "
+            "input itself, which keeps its natural timing: jumps keep their flight speed while idle stretches "
+            "are sped through (or slowed down when lengthening)."),
+        epilog=(
+            "examples:\n"
+            "  retime guided 16_06.amc -o short.bvh --scale 0.6 --warp short.csv\n"
+            "  retime guided 16_06.amc -o long.bvh --duration 5 --fast\n"
+            "  retime guided weak.bvh -o strong.bvh --reference aggressive.bvh\n"
+            "  retime guided jumps.bvh -o slowmo.bvh --reference slowmo_jump.bvh --free\n"
+            "  retime guided walk.amc -o keyed.bvh --duration 3 --keytime 1.2=0.9 --keytime 2.5=2.2"),
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_motion_args(p)
+    add_output_args(p)
+    add_duration_args(p, free=True)
+    p.add_argument("--reference", metavar="REF", help="motion whose timing to imitate (same skeleton; default: the input)")
+    p.add_argument("--reference-fps", type=positive_float, metavar="HZ", help="frame rate of an .amc reference (default 120)")
+    p.add_argument("--max-skip", type=int, default=8, metavar="S",
+                   help="skip limit: an output frame advances at most S analysis frames (default 8)")
+    p.add_argument("--neighbors", type=int, default=3, metavar="K", help="nearest reference features per score (default 3)")
+    p.add_argument("--fast", action="store_true", help="coarse-to-fine heuristic instead of the exact search")
+    p.add_argument("--analysis-fps", type=positive_float, default=30.0, metavar="HZ",
+                   help="rate of the search (default 30 Hz, as in the paper)")
+    p.add_argument("--upsample", type=int, metavar="U",
+                   help="grid frames per analysis frame (default: automatic; more lets the warp slow down further)")
+    p.add_argument("--smoothing", type=int, default=5, metavar="W",
+                   help="moving-average window of the warp in analysis frames (default 5; 1 = none)")
+    p.add_argument("--adaptive-smoothing", action="store_true",
+                   help="average each output frame over the source time it covers (window = local compression)")
+    p.add_argument("--approx", type=float, metavar="EPS",
+                   help="approximate nearest neighbours (KD-tree) with relative error EPS, for long references")
+    p.add_argument("--quiet", action="store_true", help="no progress messages")
+    p.set_defaults(func=run)
+
+
+def run(args):
+    check_output(args)
+    motion = load_input(args)
+    if motion.n_frames < 2:
+        raise RetimeError(f"{args.motion}: a single frame has no timing to change")
+    reference = None
+    if args.reference:
+        check_not_input(args.output, args.reference)
+        if args.warp:
+            check_not_input(args.warp, args.reference)
+        reference = load_motion(args.reference, fps=args.reference_fps)
+    from ..guided import adaptive_smooth, guided_solve
+
+    result = guided_solve(
+        motion, reference, duration=args.duration, scale=args.scale, free=bool(getattr(args, "free", False)),
+        keytimes=args.keytime, max_skip=args.max_skip, neighbors=args.neighbors, fast=args.fast,
+        analysis_fps=args.analysis_fps, upsample=args.upsample, smoothing=args.smoothing,
+        knn="approx" if args.approx is not None else "exact", eps=args.approx or 0.0, quiet=args.quiet)
+    curve = result.curve
+    retimed = adaptive_smooth(motion, curve) if args.adaptive_smoothing else apply_timing(motion, curve)
+    write_outputs(args, motion, curve, retimed)
+    if not args.quiet:
+        kind = "exact" if result.exact else "heuristic"
+        print(f"objective {result.objective:.4g} ({kind}; n={result.n}, m={result.m}, r={result.r}, s={result.s}, "
+              f"k={result.k}); scores {result.stats.objective_s:.3f} s, search {result.stats.optimization_s:.3f} s")
+    return 0

@@ -1,0 +1,122 @@
+"""guided_warp on bundled CMU clips: durations, keytimes, identity, flight speed, errors, CLI."""
+import csv
+
+import numpy as np
+import pytest
+
+from retime.cli import main
+from retime.data import bundled_path
+from retime.errors import RetimeError
+from retime.guided import guided_solve, guided_warp
+from retime.guided.evaluate import flight_phases, interval_speed
+from retime.motion import load_motion
+from retime.warp import apply_timing
+
+
+@pytest.fixture(scope="module")
+def jump():
+    return load_motion(bundled_path("16_06.amc"))
+
+
+@pytest.fixture(scope="module")
+def high_jump():
+    return load_motion(bundled_path("16_03.amc"))
+
+
+def test_identity_when_duration_and_reference_unchanged(jump):
+    res = guided_solve(jump)
+    assert res.m == res.n
+    assert np.array_equal(res.frames, np.arange(res.n))
+    t = np.linspace(0, jump.duration, 50)
+    np.testing.assert_allclose(res.curve(t), t, atol=1e-9)
+
+
+@pytest.mark.parametrize("scale", [0.6, 1.5])
+@pytest.mark.parametrize("clip", ["jump", "high_jump"])
+def test_flight_keeps_its_speed(clip, scale, request):
+    motion = request.getfixturevalue(clip)
+    res = guided_solve(motion, scale=scale)
+    curve = res.curve
+    want = np.floor(motion.duration * scale * motion.fps + 1e-6) / motion.fps
+    assert curve.duration == pytest.approx(want, abs=1e-9)
+    assert curve(curve.duration) == pytest.approx(motion.duration)
+    flights = flight_phases(motion)
+    assert len(flights) == 1
+    (a, b), = flights
+    assert abs(interval_speed(curve, a, b) - 1.0) < 0.15
+    overall = motion.duration / curve.duration
+    assert abs(overall - 1 / scale) < 0.05
+    # the rest of the clip absorbs the change: it plays clearly faster (or slower) than 1
+    rest = interval_speed(curve, 0.0, a)
+    assert (rest > 1.3) if scale < 1 else (rest < 0.8)
+    # every output frame of the discrete warp advances 1..s grid frames
+    gaps = np.diff(res.frames)
+    assert gaps.min() >= 1 and gaps.max() <= res.s
+    assert len(res.frames) == res.m
+
+
+def test_heuristic_is_feasible_and_not_better(jump):
+    exact = guided_solve(jump, scale=0.6)
+    fast = guided_solve(jump, scale=0.6, fast=True)
+    assert not fast.exact and exact.exact
+    assert fast.objective >= exact.objective - 1e-9
+    assert fast.curve.duration == exact.curve.duration
+
+
+def test_keytimes_are_hit_exactly(jump):
+    keys = [(1.0, 0.7), (2.3, 1.55)]
+    res = guided_solve(jump, duration=2.4, keytimes=keys)
+    for src, dst in keys:
+        assert res.curve(dst) == pytest.approx(src, abs=1e-9)
+        assert res.raw_curve(dst) == pytest.approx(src, abs=1e-9)
+    assert res.curve.duration == pytest.approx(2.4)
+    assert np.all(np.diff(res.curve(np.linspace(0, 2.4, 400))) >= -1e-12)
+
+
+def test_other_reference_and_free_duration(jump, high_jump):
+    res = guided_solve(jump, reference=high_jump, duration=jump.duration)
+    assert res.upsample == [2]  # the grid is upsampled so that the warp may slow down
+    assert res.curve.duration == pytest.approx(jump.duration)
+    free = guided_solve(jump, reference=high_jump, free=True, max_skip=8)
+    assert free.curve.source_duration == pytest.approx(jump.duration)
+    assert free.m == len(free.frames) and free.exact
+
+
+def test_errors(jump):
+    with pytest.raises(RetimeError, match="shortest possible is"):
+        guided_warp(jump, duration=0.2)
+    with pytest.raises(RetimeError, match="collide|closer than one frame"):
+        guided_warp(jump, duration=3.0, keytimes=[(1.0, 1.0), (1.005, 1.005)])
+    with pytest.raises(RetimeError, match="out of order or collide"):
+        guided_warp(jump, duration=3.0, keytimes=[(1.0, 1.0), (1.0, 1.5)])
+    short = jump.frames(slice(0, 4))  # 4 frames at 120 Hz: 1 frame at 30 Hz
+    with pytest.raises(RetimeError, match="at least 3"):
+        guided_warp(jump, reference=short)
+    walk = load_motion(bundled_path("131_01.bvh"))
+    with pytest.raises(RetimeError, match="skeleton differs"):
+        guided_warp(jump, reference=walk)
+    with pytest.raises(RetimeError, match="fixed output duration"):
+        guided_warp(jump, free=True, keytimes=[(1.0, 1.0)])
+
+
+def test_cli(tmp_path, capsys):
+    src = str(bundled_path("16_06.amc"))
+    out, warp = tmp_path / "g.bvh", tmp_path / "g.csv"
+    assert main(["guided", src, "-o", str(out), "--scale", "0.6", "--warp", str(warp), "--quiet"]) == 0
+    m = load_motion(out)
+    jump = load_motion(src)
+    assert m.n_frames == int(np.floor(jump.duration * 0.6 * jump.fps + 1e-6)) + 1
+    rows = list(csv.reader(warp.read_text().splitlines()))
+    assert rows[0] == ["output_time", "source_time"] and len(rows) == m.n_frames + 1
+    assert main(["guided", src, "-o", str(out), "--duration", "0.2"]) == 2
+    assert "shortest possible" in capsys.readouterr().err
+    assert main(["guided", src, "-o", str(tmp_path / "x.bvh"), "--scale", "1.5", "--fast",
+                 "--adaptive-smoothing", "--quiet"]) == 0
+    with pytest.raises(SystemExit):
+        main(["guided", src, "-o", str(out), "--duration", "2", "--free"])
+
+
+def test_apply_matches_curve(jump):
+    curve = guided_warp(jump, scale=0.6)
+    out = apply_timing(jump, curve)
+    assert out.n_frames == curve.n_frames(jump.fps)
