@@ -299,10 +299,14 @@ class Renderer:
         ground = float(np.min(all_y))
         stand = track.positions[0]
         body_h = float(np.clip(np.max(stand[:, 1]) - np.min(stand[:, 1]), 0.5, 3.0))
+        # vertical range the camera must show: the standing body, or the highest point reached
+        # (a high jump), whichever is taller
+        top = float(np.percentile(track.positions[..., 1].max(axis=1), 99.5))
+        extent = float(np.clip(max(body_h, top - ground), 0.5, 4.0))
 
         fov = math.radians(38.0)
         focal = (view_h / 2) / math.tan(fov / 2)
-        dist = camera_distance if camera_distance else 1.65 * body_h / (2 * math.tan(fov / 2))
+        dist = camera_distance if camera_distance else 1.4 * extent / (2 * math.tan(fov / 2))
         # steady camera: fixed orientation, smoothed horizontal root position
         d = _travel_direction(track)
         side = np.array([-d[2], 0.0, d[0]])
@@ -317,7 +321,7 @@ class Renderer:
         target = np.empty_like(smooth)
         target[:, 0] = smooth[:, 0]
         target[:, 2] = smooth[:, 2]
-        target[:, 1] = ground + 0.5 * body_h
+        target[:, 1] = ground + 0.5 * extent
         elevation = 0.4 * body_h
         centers = target + dist * back[None, :] + np.array([0.0, elevation, 0.0])
         fwd = -(dist * back + np.array([0.0, elevation, 0.0]))
@@ -365,7 +369,7 @@ class Renderer:
             ground=ground,
             sampled=sampled,
             background=background,
-            grid=self._grid(cam, ground, grid_bands, grid_colors, view_h - 1),
+            grid=self._grid(cam, ground, grid_bands, grid_colors, view_h - 1, W),
             side=_sides(track.names, track.parents),
             head=head,
         )
@@ -418,14 +422,15 @@ class Renderer:
         return img
 
     # ------------------------------------------------------------------ drawing
-    def _grid(self, cam: _Camera, ground: float, bands, colors, y_max: float) -> list:
+    def _grid(self, cam: _Camera, ground: float, bands, colors, y_max: float, x_max: float) -> list:
         """Projected ground-grid segments for every frame, per depth band (computed once).
 
         The grid is fixed in the world (0.5 m squares) and covers the region the camera looks at
         over the clip; segments are clipped to depth bands whose colour fades into the floor.
         Returns [(colour, segments (N, L, 2, 2), visible (N, L))] per band.
         """
-        step, radius = 0.5, 5.0
+        step = 0.5
+        radius = max(4.0, 1.3 * bands[-1][1])  # reaches the end of the last depth band
         c = cam.centers
         look = c + cam.forward[None, :] * ((c[:, 1:2] - ground) / max(-cam.forward[1], 0.05))
         x_lo, x_hi = look[:, 0].min() - radius, look[:, 0].max() + radius
@@ -461,6 +466,9 @@ class Renderer:
             t = np.clip((y_max - y0) / dy, 0.0, 1.0)[..., None]
             s0n = np.where((y0 > y_max)[..., None], s0 + (s1 - s0) * t, s0)
             s1n = np.where((y1 > y_max)[..., None], s0 + (s1 - s0) * t, s1)
+            # cull what lies entirely left, right or above the view
+            xa, xb = s0n[..., 0], s1n[..., 0]
+            visible &= ~(((xa < 0) & (xb < 0)) | ((xa > x_max) & (xb > x_max)) | ((s0n[..., 1] < 0) & (s1n[..., 1] < 0)))
             out.append((color, np.stack([s0n, s1n], axis=-2), visible))
         return out
 
