@@ -54,5 +54,5 @@ def run(args):
             fs = "-" if m.flight_speed is None else f"{m.flight_speed:.2f}x"
             ff = "" if m.feasible_fraction is None else f", feasible fraction {m.feasible_fraction:.3f}"
             print(f"{m.name:8s} {m.curve.duration:.3f} s, flight speed {fs}{ff}, {m.seconds:.2f} s to compute")
-    print(f"wrote {result.report_path} in {result.total_seconds:.1f} s")
+    print(f"wrote {result.report_path} in {result.total_seconds:.1f} s; open {result.report_path.resolve().as_uri()} in a browser")
     return 0

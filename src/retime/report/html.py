@@ -92,6 +92,11 @@ def write_report(result, scale: float, video_fps: float) -> None:
     add(f'<p class="lead">A {_e(f"{r.source_duration:.2f}")} s motion-capture clip played in '
         f"{_e(f'{r.duration:.2f}')} s ({_e(f'{100 * r.duration / r.source_duration:.0f}')}% of its length) by "
         f"{len(r.methods)} methods. Timing is judged by eye: watch the jump's flight beside the original.</p>")
+    flights = [(m.name, m.flight_speed) for m in r.methods if m.flight_speed is not None]
+    if flights and r.flight:
+        add('<p class="lead">The airborne part of the jump plays at '
+            + ", ".join(f"<strong>{f:.2f}x</strong> with {_e(n)}" for n, f in flights)
+            + " (1x is its natural speed).</p>")
     add("</header>")
 
     # what was asked
