@@ -15,6 +15,12 @@ def check_not_input(output, *inputs):
             raise RetimeError(f"{output}: refusing to overwrite the input file; choose another output path")
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 @contextlib.contextmanager
 def atomic_write(path, mode="w", newline=None):
     """Open a temporary file beside ``path``; rename it over ``path`` only if the block succeeds."""
@@ -32,6 +38,7 @@ def atomic_write(path, mode="w", newline=None):
             f = os.fdopen(fd, mode, encoding="utf-8", newline=newline)
         with f:
             yield f
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual permissions
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
