@@ -101,8 +101,7 @@ def test_load_drag_lock_export(browser, server, shots):
     wait_js(page, "window.__retime.solution.points.length === 3")
     x, y = point_center(page, 1)
     drag(page, x, y, x - 0.12 * box["width"], y - 0.3 * box["height"])
-    wait_js(page, "window.__retime.solution && window.__retime.solution.final && "
-                  "window.__retime.lastSolvedSeq === window.__retime.seq")
+    wait_js(page, "window.__retime.lastFinalSeq === window.__retime.seq")
     time.sleep(0.3)
     after = page.evaluate("({s: window.__retime.shown.sourceRetimed, d: document.querySelector('#curve-path').getAttribute('d'),"
                           " pose: Array.from(window.__retime.viewer.lastPoses[1].slice(0, 9)), sol: window.__retime.solution})")
@@ -175,41 +174,54 @@ def test_errors_are_shown_and_the_page_keeps_working(browser, server, shots):
     page.close()
 
 
-def test_drag_latency(browser, server):
-    """Drag a control point and time input -> re-solved curve painted on screen (printed)."""
+@pytest.mark.parametrize("method", ["physics", "guided", "linear"])
+def test_drag_latency(browser, server, method, capsys):
+    """Drag a control point; time each input -> re-solved (reconverged) curve painted on screen."""
     url = server[0]
     errors = []
     page = open_page(browser, url, errors)
     methods = {m["name"]: m for m in page.evaluate("window.__retime.methods")}
-    method = next(m for m in ("physics", "guided", "linear") if methods.get(m, {}).get("available"))
-    if method != "linear":
-        page.click(f'#methods button[data-method="{method}"]')
-        wait_js(page, f"window.__retime.solution.method === '{method}' && window.__retime.solution.final", timeout=60)
+    if not methods.get(method, {}).get("available"):
+        pytest.skip(f"{method}: {methods.get(method, {}).get('reason', 'not in this build')}")
     page.click("#play")  # paused: the usual state while editing (the 3-D view still redraws each change)
     box = page.locator("#curve").bounding_box()
+    settled = "window.__retime.lastFinalSeq === window.__retime.seq"
+    if method != "linear":
+        page.click(f'#methods button[data-method="{method}"]')
+        wait_js(page, f"window.__retime.solution.method === '{method}' && {settled}", timeout=120)
     n = page.evaluate("window.__retime.solution.points.length")
-    if n <= 2:
-        page.mouse.dblclick(box["x"] + box["width"] * 0.4, box["y"] + box["height"] * 0.5)
-        wait_js(page, f"window.__retime.solution.points.length === {n + 1}")
-    i = page.evaluate("window.__retime.solution.points.length") // 2
+    if n < 4:  # linear, guided: add two points, lock the first (a keytime)
+        page.mouse.dblclick(box["x"] + box["width"] * 0.3, box["y"] + box["height"] * 0.45)
+        wait_js(page, f"window.__retime.solution.points.length === {n + 1} && {settled}", timeout=30)
+        page.mouse.dblclick(box["x"] + box["width"] * 0.6, box["y"] + box["height"] * 0.35)
+        wait_js(page, f"window.__retime.solution.points.length === {n + 2} && {settled}", timeout=30)
+    lock = 1 if n < 4 else n // 4  # physics: lock one of the spline's control points
+    page.click(f'#curve g.cp[data-index="{lock}"]')
+    page.keyboard.press("l")
+    wait_js(page, f"window.__retime.solution.points[{lock}].locked && {settled}", timeout=30)
+    pts = page.evaluate("window.__retime.solution.points")
+    i = max(range(1, len(pts) - 1), key=lambda k: (not pts[k]["locked"], -abs(pts[k]["t"] - 0.6 * pts[-1]["t"])))
     page.evaluate("window.__retime.latencies = []")
-    x, y = point_center(page, i)
-    for k in range(3):  # drag up and down
-        dy = (-1) ** k * 0.15 * box["height"]
-        drag(page, x, y, x, y + dy, steps=20, pause=0.03)
-        y += dy
-        time.sleep(0.3)
-    wait_js(page, "window.__retime.lastSolvedSeq === window.__retime.seq", timeout=30)
+    deadline = time.monotonic() + 25
+    k = 0
+    while time.monotonic() < deadline and len(page.evaluate("window.__retime.latencies")) < 30:
+        x, y = point_center(page, i)  # (the optimizer may have moved it after the last release)
+        dy = (-1) ** k * 0.08 * box["height"]
+        drag(page, x, y, x, y + dy, steps=12, pause=0.04 if method == "linear" else 0.12)
+        k += 1
+        wait_js(page, settled, timeout=30)
+    wait_js(page, settled, timeout=30)
     time.sleep(0.2)
     lat = page.evaluate("window.__retime.latencies")
     ms = [x["ms"] for x in lat]
-    assert len(ms) >= 10, lat
+    assert len(ms) >= (8 if method == "linear" else 3), lat
     med, p90 = statistics.median(ms), float(np.percentile(ms, 90))
     solve = statistics.median([x["solve_ms"] for x in lat if x["solve_ms"] is not None])
     frames = page.evaluate("window.__retime.clip.n_frames")
-    print(f"\n[editor latency] method={method} clip={CLIP} ({frames} frames), {len(ms)} drag updates: "
-          f"input -> re-solved curve on screen median {med:.0f} ms, p90 {p90:.0f} ms "
-          f"(server solve median {solve:.1f} ms; headless Chromium, software WebGL, 2 cores)")
-    assert med < 1000
+    with capsys.disabled():
+        print(f"\n[editor latency] {method}: {CLIP} ({frames} frames), {len(ms)} drag updates: input -> re-solved curve "
+              f"on screen median {med:.0f} ms, p90 {p90:.0f} ms (server solve median {solve:.0f} ms; "
+              f"headless Chromium with software WebGL on {os.cpu_count()} cores)")
+    assert med < 3000
     assert not errors, errors
     page.close()

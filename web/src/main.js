@@ -45,7 +45,7 @@ async function api(path, { method = "GET", body = undefined, binary = false } = 
 // ---- state ---------------------------------------------------------------------------------
 const state = {
   session: null, clip: null, methods: [], method: "linear", params: {},
-  solution: null, seq: 0, sentAt: new Map(), lastSolvedSeq: -1,
+  solution: null, seq: 0, sentAt: new Map(), lastSolvedSeq: -1, lastFinalSeq: -1,
   playing: true, playT: 0, rate: 1, lastFrame: null,
   latencies: [], // drag -> reconverged curve on screen (ms)
 };
@@ -101,6 +101,7 @@ function connect() {
     let msg;
     try { msg = JSON.parse(ev.data); } catch (e) { return; }
     if (msg.type === "solution") onSolution(msg);
+    else if (msg.type === "status") setStatus(msg.message ? "busy" : "live", msg.message || "live");
     else if (msg.type === "error") {
       toast(msg.message, "error", "Could not apply the edit");
       restoreInputs();
@@ -121,13 +122,14 @@ function onSolution(sol) {
   state.solution = sol;
   state.method = sol.method;
   if (sol.params) state.params[sol.method] = { ...(state.params[sol.method] || {}), ...sol.params };
-  editor.set(sol.points, sol.curve, sol.source_duration, state.clip.fps);
+  editor.set(sol.points, sol.curve, sol.source_duration, state.clip.fps, sol.keytimes);
   speedPlot.set(sol.curve, sol.speed, sol.feasibility);
   $("feas-legend").hidden = !sol.feasibility;
   updatePanel();
   updateScrub();
   state.dirty = true;
   if (sol.final) {
+    if (sol.seq != null) state.lastFinalSeq = sol.seq;
     setStatus("live", "live");
     const t0 = state.sentAt.get(sol.seq);
     if (t0 !== undefined) {
@@ -301,6 +303,13 @@ function updateScrub() {
     m.title = `keytime: output ${p.t.toFixed(2)} s`;
     marks.appendChild(m);
   });
+  for (const [, kt] of state.solution.keytimes || []) {
+    const m = document.createElement("div");
+    m.className = "mark";
+    m.style.left = `${(100 * kt) / T}%`;
+    m.title = `keytime: output ${kt.toFixed(2)} s`;
+    marks.appendChild(m);
+  }
   for (const [end, what] of [[state.clip.duration, "original ends"], [state.solution.duration, "retimed ends"]]) {
     const m = document.createElement("div");
     m.className = "end";

@@ -54,8 +54,9 @@ export class CurveEditor {
     return [e.clientX - r.left, e.clientY - r.top];
   }
 
-  set(points, curve, S, fps) {
+  set(points, curve, S, fps, keytimes = []) {
     this.S = S; this.fps = fps;
+    this.keytimes = keytimes || [];
     if (!this.drag) this.points = points.map((p) => ({ ...p }));
     else {
       // keep the point under the cursor where the user holds it; take the others from the server
@@ -182,6 +183,16 @@ export class CurveEditor {
       el("path", { class: "keymark", d: `M${ax.x(p.t)},${H - this.bottom} l-4,6 h8 z` }, svg);
       el("path", { class: "keymark", d: `M${ax.x(0)},${this.y(p.s)} l-6,-4 v8 z` }, svg);
     });
+
+    // keytimes that are not control points (physics keeps them as constraints): diamonds
+    for (const [ks, kt] of this.keytimes || []) {
+      el("line", { class: "keyguide", x1: ax.x(kt), x2: ax.x(kt), y1: this.y(ks), y2: H - this.bottom }, svg);
+      el("line", { class: "keyguide", x1: ax.x(0), x2: ax.x(kt), y1: this.y(ks), y2: this.y(ks) }, svg);
+      el("path", { class: "keymark", d: `M${ax.x(kt)},${H - this.bottom} l-4,6 h8 z` }, svg);
+      el("path", { class: "keymark", d: `M${ax.x(0)},${this.y(ks)} l-6,-4 v8 z` }, svg);
+      const g = el("path", { class: "keytime", d: `M${ax.x(kt)},${this.y(ks) - 7} l7,7 l-7,7 l-7,-7 z` }, svg);
+      el("title", {}, g).textContent = `keytime: output ${kt.toFixed(3)} s plays source ${ks.toFixed(3)} s (Reset clears it)`;
+    }
 
     // the curve
     if (this.curve) {

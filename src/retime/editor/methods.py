@@ -108,6 +108,7 @@ class Job:
     version: int = 0
     ops: list = field(default_factory=list)
     held: int | None = None
+    status: Callable[[str], None] = lambda message: None  # progress line for the page (long steps)
 
     def ops_since(self, version):
         """Edits after ``version``, or None if the log does not reach back that far."""
@@ -125,6 +126,7 @@ class Solution:
     feasibility: np.ndarray | None = None  # per output frame, 0 (infeasible) .. 1 (feasible)
     info: dict = field(default_factory=dict)
     final: bool = True
+    keytimes: list | None = None  # (source, output) constraints that are not control points (physics)
 
 
 class Method:
@@ -138,6 +140,11 @@ class Method:
 
     def __init__(self, clip: Clip):
         self.clip = clip
+
+    @classmethod
+    def param_specs(cls, clip: Clip) -> tuple[Param, ...]:
+        """The parameters shown for this clip (some depend on its skeleton)."""
+        return cls.params
 
     @classmethod
     def availability(cls, clip: Clip) -> str | None:
@@ -172,53 +179,40 @@ class GuidedMethod(Method):
 
     name = "guided"
     label = "Guided"
-    description = "Keytimes (locked points) plus a reference: the warp whose local velocities and accelerations best match the reference (Hsu et al. 2007)."
+    description = ("Keytimes (locked points) plus a reference: the warp whose local velocities and accelerations "
+                   "best match the reference, by exact dynamic programming (Hsu et al. 2007). Unlocked points follow.")
     params = (
         Param("reference", "Reference", "choice", "self",
               choices=(("self", "the motion itself (keep its timing)"), ("reference", "the --reference motion"))),
-        Param("max_speed", "Speed limit", "number", 4.0, 1.0, 16.0, 1.0, "x", help="frame skip limit s (Hsu §3.1)"),
-        Param("k", "Neighbours", "number", 3.0, 1.0, 10.0, 1.0, help="k nearest reference features (Hsu §4.3)"),
+        Param("max_skip", "Skip limit", "number", 8.0, 1.0, 32.0, 1.0, "frames",
+              help="most analysis frames one output frame may advance (Hsu §3.1)"),
+        Param("neighbors", "Neighbours", "number", 3.0, 1.0, 10.0, 1.0, help="k nearest reference features (Hsu §4.3)"),
+        Param("fast", "Coarse-to-fine", "bool", False, help="the heuristic of Hsu §3.3 instead of the exact search"),
     )
 
     @classmethod
     def availability(cls, clip):
         mod = _optional("retime.guided")
-        if mod is None or not hasattr(mod, "guided_warp"):
-            return "guided time warping is not installed in this build (retime.guided.guided_warp is missing)"
+        if mod is None or not hasattr(mod, "guided_solve"):
+            return "guided time warping is not installed in this build (retime.guided.guided_solve is missing)"
         return None
 
     def solve(self, job):
-        from ..guided import guided_warp  # noqa: PLC0415 (optional method)
+        from ..guided import guided_solve  # noqa: PLC0415 (optional method)
 
         params = job.params
-        reference = self.clip.motion
+        reference = None
         if params.get("reference") == "reference":
             if self.clip.reference is None:
-                raise RetimeError("no reference motion: start the editor with --reference REF.bvh to use one")
+                raise RetimeError("no reference motion: start the editor with --reference REF to use one")
             reference = self.clip.reference
         keys = keytimes_of(job.points, locked_only=True)
-        curve = _call_guided(guided_warp, self.clip.motion, reference, keys, job.duration,
-                             int(params.get("max_speed", 4)), int(params.get("k", 3)))
-        pts = _follow(job.points, curve)
-        yield Solution(curve, points=pts, info={"keytimes": len(keys)})
-
-
-def _call_guided(guided_warp, motion, reference, keytimes, duration, max_speed, k):
-    """Call guided_warp with the keyword names it accepts (the module is written alongside)."""
-    import inspect  # noqa: PLC0415
-
-    sig = inspect.signature(guided_warp)
-    kwargs = {}
-    names = sig.parameters
-    for want, value in (("reference", reference), ("keytimes", keytimes), ("duration", duration),
-                        ("max_speed", max_speed), ("skip", max_speed), ("s", max_speed), ("k", k)):
-        if want in names:
-            kwargs[want] = value
-    result = guided_warp(motion, **kwargs)
-    curve = getattr(result, "curve", result)
-    if not isinstance(curve, TimingCurve):
-        raise RetimeError("guided_warp returned no timing curve")
-    return curve
+        result = guided_solve(self.clip.motion, reference, duration=job.duration, keytimes=keys,
+                              max_skip=int(params.get("max_skip", 8)), neighbors=int(params.get("neighbors", 3)),
+                              fast=bool(params.get("fast", False)))
+        curve = result.curve
+        info = {"keytimes": len(keys), "objective": float(result.objective), "exact": bool(result.exact)}
+        yield Solution(curve, points=_follow(job.points, curve), info=info)
 
 
 def _follow(points, curve):
@@ -232,6 +226,208 @@ def _follow(points, curve):
     return out
 
 
+class PhysicsMethod(Method):
+    """Physics-based retiming (McCann et al. 2006) as an interactive session (§3.6).
+
+    The control points are the timing spline's (their output times are knots, so they move only
+    vertically); locking one holds it (a constraint for the optimizer); the point being dragged is
+    held while the user holds it and let go afterwards, so the optimizer may pull it back ("fight
+    with or help the optimizer"). Locked points of another method become keytimes when the physics
+    session is (re)built: on switching to it, or when the duration or a parameter changes. Dynamics
+    and feasible regions are computed once per clip and setting and shared by all sessions."""
+
+    name = "physics"
+    label = "Physics"
+    description = ("The timing that keeps the motion physically plausible (contact forces, joint torques) for the "
+                   "new duration, keytimes, gravity or masses (McCann et al. 2006). Points move vertically.")
+    point_axes = "s"
+    MAX_ITER = 300
+    RUN_SECONDS = 2.0
+    MAX_RUNS = 4
+
+    @classmethod
+    def param_specs(cls, clip):
+        parts = [("none", "none (all masses as estimated)")] + [(n, f"{n} and below") for n in _limb_roots(clip)]
+        return (
+            Param("gravity", "Gravity", "number", 9.81, 0.5, 40.0, 0.1, "m/s²", help="strength of gravity (down)"),
+            Param("objective", "Objective", "choice", "match",
+                  choices=(("match", "match the original torques"), ("minimize", "minimize torques"))),
+            Param("mass_part", "Heavier / lighter part", "choice", "none", choices=tuple(parts)),
+            Param("mass_factor", "Mass factor", "number", 1.0, 0.1, 10.0, 0.1, "×", help="that part's mass times this"),
+            Param("alpha", "Feasibility weight", "number", 100.0, 0.1, 10000.0, 1.0,
+                  help="α of Eq. 14 (torque matching has weight 1)"),
+        )
+
+    @classmethod
+    def availability(cls, clip):
+        api = _optional("retime.physics.api")
+        if api is None or not all(hasattr(api, n) for n in ("prepare", "make_problem")):
+            return "physics retiming is not installed in this build (retime.physics.api is missing)"
+        return None
+
+    def __init__(self, clip):
+        super().__init__(clip)
+        self.rs = None  # the physics RetimingSession
+        self.key = None
+        self.seen = None  # the session version whose edits rs reflects
+        self.temp_lock = None  # index locked only because the user is holding it
+        self.prepared = None
+
+    def _key(self, params):
+        return (float(params.get("gravity", 9.81)), params.get("objective", "match"), params.get("mass_part", "none"),
+                float(params.get("mass_factor", 1.0)), float(params.get("alpha", 100.0)))
+
+    def _build(self, job, key):
+        from ..physics.api import make_problem  # noqa: PLC0415
+        from ..physics.optimize import RetimingSession  # noqa: PLC0415
+
+        terms_pd_regions_obj = _physics_prepared(self.clip, key, job.status)
+        self.prepared = terms_pd_regions_obj
+        obj = terms_pd_regions_obj[3]
+        keytimes = [(p.s, p.t) for p in job.points[1:-1] if p.locked]
+        problem = make_problem(obj, self.clip.motion.duration, job.duration, keytimes)
+        self.rs = RetimingSession(problem, fps=self.clip.motion.fps)
+        self.key, self.temp_lock = key, None
+
+    def _replay(self, ops):
+        rs = self.rs
+        for op in ops:
+            kind = op["op"]
+            n = len(rs.control_points())
+            if kind in ("method", "reset", "duration"):
+                return False  # (a parameter change shows in the key)
+            if kind == "move":
+                i = op["index"]
+                if i == n - 1:
+                    return False  # a new duration: rebuild
+                if not 0 < i < n - 1:
+                    continue
+                if self.temp_lock is not None and self.temp_lock != i:
+                    self._let_go()
+                hold = bool(op.get("hold"))
+                was_locked = i in rs.problem.locks
+                rs.move(i, op["s"], lock=hold)
+                if hold and not was_locked:
+                    self.temp_lock = i
+            elif kind == "release":
+                self._let_go()
+            elif kind == "add":
+                self._let_go()
+                i = rs.add(op["t"])
+                rs.move(i, op["s"], lock=bool(op.get("locked")))
+            elif kind == "remove":
+                self._let_go()
+                if 0 < op["index"] < n - 1:
+                    rs.remove(op["index"])
+            elif kind == "lock":
+                if self.temp_lock == op["index"]:
+                    self.temp_lock = None
+                rs.lock(op["index"], bool(op.get("locked", True)))
+        return True
+
+    def _let_go(self):
+        if self.temp_lock is not None:
+            self.rs.lock(self.temp_lock, False)
+            self.temp_lock = None
+
+    def solve(self, job):
+        key = self._key(job.params)
+        ops = job.ops_since(self.seen) if self.rs is not None and key == self.key else None
+        if ops is None or not self._replay(ops):
+            self._build(job, key)
+        self.seen = job.version
+        if job.held is None:
+            self._let_go()
+        if job.cancelled():
+            return
+        if self.rs.history:  # the edit itself at once (the curve through the moved point), then the optimum
+            yield self._solution(self.rs.history[-1], final=False)
+        # warm-started optimizer runs; a newer edit cancels between runs (the loop then solves the newest
+        # state). Runs are long enough for the augmented Lagrangian to converge (restarting it often
+        # would not), and bounded so that a hard case still shows progress.
+        for k in range(self.MAX_RUNS):
+            info = self.rs.reconverge(max_iter=self.MAX_ITER, max_seconds=self.RUN_SECONDS)
+            if job.cancelled():
+                return
+            if info.converged or k == self.MAX_RUNS - 1:
+                break
+            yield self._solution(info, final=False)
+        yield self._solution(info, final=True)
+
+    def _solution(self, info, final):
+        rs = self.rs
+        fps = self.clip.motion.fps
+        curve = rs.curve(fps)
+        pts = [ControlPoint(p["output_time"], p["source_time"], bool(p["locked"]) or p["index"] in (0, len(rs.control_points()) - 1))
+               for p in rs.control_points()]
+        pts[0] = ControlPoint(0.0, 0.0, True)
+        pts[-1] = ControlPoint(curve.duration, curve.source_duration, True)
+        out = {"objective": info.objective, "iterations": info.iterations, "converged": info.converged,
+               "keytimes": len(rs.keytimes), "constraint_violation": info.constraint_violation}
+        feas = None
+        if final:
+            feas = _feasibility(rs.spline, self.prepared[2], fps)
+            out["feasible_fraction"] = round(float(np.mean(feas >= 1.0)), 4)
+        return Solution(curve, points=pts, feasibility=feas, info=out, final=final, keytimes=list(rs.keytimes))
+
+
+def _feasibility(spline, regions, fps, tol=1e-2):
+    """Per output frame: 1 inside the frame's feasible region (within tol), falling to 0 at 100 x tol."""
+    T = spline.duration
+    t = np.minimum(np.arange(int(round(T * fps)) + 1) / fps, T)
+    s, v, u = spline(t), spline.speed(t) ** 2, spline.accel(t)
+    times = np.asarray(regions.times, dtype=float)
+    idx = np.clip(np.rint(np.interp(s, times, np.arange(len(times)))).astype(int), 0, len(times) - 1)
+    d = np.array([regions.distance(int(i), (float(a), float(b))) for i, a, b in zip(idx, u, v)])
+    return np.where(d <= tol, 1.0, np.clip(1.0 - np.log10(np.maximum(d, tol) / tol) / 2.0, 0.0, 0.95))
+
+
+_PHYSICS_LOCK = __import__("threading").Lock()
+_PHYSICS_CACHE: dict = {}  # (id(motion), key) -> (terms, pd, regions, obj); a few entries
+
+
+def _physics_prepared(clip, key, status):
+    """Dynamics, regions and objective for a clip and setting: computed once, shared by sessions."""
+    from ..physics.api import prepare  # noqa: PLC0415
+
+    gravity, objective, part, factor, alpha = key
+    cache_key = (id(clip.motion), key)
+    with _PHYSICS_LOCK:
+        if cache_key in _PHYSICS_CACHE:
+            return _PHYSICS_CACHE[cache_key]
+        terms = next((v[0] for (m, _), v in _PHYSICS_CACHE.items() if m == id(clip.motion)), None)
+        status("physics: computing the motion's dynamics and feasible regions (once per setting)…")
+        masses = None
+        if part != "none" and factor != 1.0:
+            sk = clip.motion.skeleton
+            root = sk.index(part)
+            masses = {sk.names[j]: factor for j in range(sk.n_joints) if _descends(sk.parents, j, root)}
+        out = prepare(clip.motion, gravity=(0.0, -gravity, 0.0), mass_factors=masses, objective=objective,
+                      alpha=alpha, terms=terms)
+        if len(_PHYSICS_CACHE) >= 6:
+            _PHYSICS_CACHE.pop(next(iter(_PHYSICS_CACHE)))
+        _PHYSICS_CACHE[cache_key] = out
+        status("")
+        return out
+
+
+def _descends(parents, j, root):
+    while j >= 0:
+        if j == root:
+            return True
+        j = int(parents[j])
+    return False
+
+
+def _limb_roots(clip):
+    """Joints that start a limb (a child of the root or of a branching joint), for mass changes."""
+    sk = clip.motion.skeleton
+    parents = [int(p) for p in sk.parents]
+    n_children = [parents.count(j) for j in range(len(parents))]
+    return [sk.names[j] for j in range(1, len(parents))
+            if parents[j] >= 0 and (parents[j] == 0 or n_children[parents[j]] > 1) and n_children[j] > 0]
+
+
 def _optional(name):
     try:
         return importlib.import_module(name)
@@ -239,7 +435,7 @@ def _optional(name):
         return None
 
 
-METHODS: dict[str, type[Method]] = {m.name: m for m in (LinearMethod, GuidedMethod)}
+METHODS: dict[str, type[Method]] = {m.name: m for m in (LinearMethod, GuidedMethod, PhysicsMethod)}
 
 
 def register(method_cls: type[Method]) -> None:
@@ -252,25 +448,25 @@ def method_catalog(clip: Clip):
         reason = cls.availability(clip)
         out.append({"name": cls.name, "label": cls.label, "description": cls.description,
                     "available": reason is None, "reason": reason, "point_axes": cls.point_axes,
-                    "params": [p.to_json() for p in cls.params]})
+                    "params": [p.to_json() for p in cls.param_specs(clip)]})
     return out
 
 
-def check_params(method_name, values: dict) -> dict:
+def check_params(method_name, values: dict, clip: Clip) -> dict:
     cls = METHODS.get(method_name)
     if cls is None:
         raise RetimeError(f"unknown method {method_name!r}; choose one of {', '.join(METHODS)}")
     if not isinstance(values, dict):
         raise RetimeError("parameters must be a JSON object")
-    known = {p.name: p for p in cls.params}
+    known = {p.name: p for p in cls.param_specs(clip)}
     unknown = sorted(set(values) - set(known))
     if unknown:
         raise RetimeError(f"{cls.label} has no parameter {unknown[0]!r}")
     return {name: p.check(values[name]) for name, p in known.items() if name in values}
 
 
-def default_params(method_name) -> dict:
-    return {p.name: p.default for p in METHODS[method_name].params}
+def default_params(method_name, clip: Clip) -> dict:
+    return {p.name: p.default for p in METHODS[method_name].param_specs(clip)}
 
 
 def now_ms():

@@ -153,6 +153,10 @@ class _BodyTooLarge(Exception):
     pass
 
 
+class _Closed(Exception):
+    """The event loop is gone (server stopping): a solve thread just ends."""
+
+
 def _too_large(n, limit):
     return f"request too large ({n} bytes; the editor accepts at most {limit // 1024} KiB)"
 
@@ -396,26 +400,35 @@ class LiveLoop:
             snap = session.snapshot()
             queue: asyncio.Queue = asyncio.Queue()
 
+            def put(item):
+                try:
+                    loop.call_soon_threadsafe(queue.put_nowait, item)
+                except RuntimeError:  # the server is shutting down
+                    raise _Closed() from None
+
+            def status(message):
+                put({"type": "status", "seq": seq, "message": message})
+
             def run():
                 t0 = time.perf_counter()
                 try:
-                    for sol in session.solve(snap):
+                    for sol in session.solve(snap, status=status):
                         payload = session.solution_json(sol, snap, seq)
                         payload["info"]["solve_ms"] = round((time.perf_counter() - t0) * 1000, 2)
-                        loop.call_soon_threadsafe(queue.put_nowait, payload)
+                        put(payload)
+                except _Closed:
+                    return
                 except RetimeError as e:
-                    loop.call_soon_threadsafe(queue.put_nowait, {"type": "error", "seq": seq, "message": str(e)})
+                    put({"type": "error", "seq": seq, "message": str(e)})
                 except Exception as e:  # a bug in a method must not kill the page
                     log.exception("solve failed")
-                    loop.call_soon_threadsafe(queue.put_nowait, {
-                        "type": "error", "seq": seq,
-                        "message": f"internal error in {snap.method} ({type(e).__name__}: {e})"})
-                finally:
-                    loop.call_soon_threadsafe(queue.put_nowait, None)
+                    put({"type": "error", "seq": seq, "message": f"internal error in {snap.method} ({type(e).__name__}: {e})"})
+                with contextlib.suppress(_Closed):
+                    put(None)
 
             future = loop.run_in_executor(self.executor, run)
             while (item := await queue.get()) is not None:
-                if item["type"] == "error" or session.version == snap.version:
+                if item["type"] != "solution" or session.version == snap.version:
                     await self.send(item)
             await future
 

@@ -48,7 +48,7 @@ class Session:
         S = clip.motion.duration
         self.points = [ControlPoint(0.0, 0.0, True), ControlPoint(S, S, True)]
         self.method = "linear"
-        self.params = {name: default_params(name) for name in METHODS}
+        self.params = {name: default_params(name, clip) for name in METHODS}
         self.adapters = {}
         self.version = 0
         self.solution: Solution | None = None
@@ -123,8 +123,8 @@ class Session:
             method = name
         elif kind == "params":
             name = op.get("method", method)
-            checked = check_params(name, op.get("values", {}))
-            params[name].update(checked)
+            checked = check_params(name, op.get("values", {}), self.clip)
+            params.setdefault(name, default_params(name, self.clip)).update(checked)
         elif kind == "duration":
             self._set_duration(points, _num(op, "duration"))
         elif kind == "release":
@@ -206,21 +206,23 @@ class Session:
     def snapshot(self) -> Snapshot:
         with self.lock:
             return Snapshot(self.version, self.method, [ControlPoint(p.t, p.s, p.locked) for p in self.points],
-                            dict(self.params[self.method]), self.duration, list(self.op_log), self.held)
+                            dict(self.params.setdefault(self.method, default_params(self.method, self.clip))),
+                            self.duration, list(self.op_log), self.held)
 
     def adapter(self, name):
         if name not in self.adapters:
             self.adapters[name] = METHODS[name](self.clip)
         return self.adapters[name]
 
-    def solve(self, snap: Snapshot, cancelled=None):
+    def solve(self, snap: Snapshot, cancelled=None, status=None):
         """Run the method on a snapshot; yields solutions that are still current. Thread-safe."""
         stale = (lambda: self.version != snap.version) if cancelled is None else cancelled
         with self.solve_lock:
             if stale():
                 return
             adapter = self.adapter(snap.method)
-            job = Job(snap.points, snap.params, snap.duration, stale, snap.version, snap.ops, snap.held)
+            job = Job(snap.points, snap.params, snap.duration, stale, snap.version, snap.ops, snap.held,
+                      status or (lambda message: None))
             try:
                 for sol in adapter.solve(job):
                     with self.lock:
@@ -271,12 +273,13 @@ class Session:
         out = {
             "type": "solution", "seq": seq, "version": snap.version if snap else self.version,
             "final": sol.final, "method": snap.method if snap else self.method,
-            "params": dict(snap.params) if snap else dict(self.params[self.method]),
+            "params": dict(snap.params) if snap else dict(self.params.get(self.method, {})),
             "duration": curve.duration, "source_duration": curve.source_duration,
             "points": [p.to_json() for p in points],
             "curve": {"t": _round(t), "s": _round(s)},
             "speed": _round(np.maximum(speed, 0.0)),
             "feasibility": None if sol.feasibility is None else _round(np.asarray(sol.feasibility, float), 4),
+            "keytimes": [[round(a, 6), round(b, 6)] for a, b in (sol.keytimes or [])],
             "info": _jsonable(sol.info),
         }
         return out
