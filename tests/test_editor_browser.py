@@ -175,7 +175,7 @@ def test_errors_are_shown_and_the_page_keeps_working(browser, server, shots):
 
 
 @pytest.mark.parametrize("method", ["physics", "guided", "linear"])
-def test_drag_latency(browser, server, method, capsys):
+def test_drag_latency(browser, server, method, capsys, shots):
     """Drag a control point; time each input -> re-solved (reconverged) curve painted on screen."""
     url = server[0]
     errors = []
@@ -212,6 +212,7 @@ def test_drag_latency(browser, server, method, capsys):
         wait_js(page, settled, timeout=30)
     wait_js(page, settled, timeout=30)
     time.sleep(0.2)
+    page.screenshot(path=str(shots / f"editor-5-{method}.png"))
     lat = page.evaluate("window.__retime.latencies")
     ms = [x["ms"] for x in lat]
     assert len(ms) >= (8 if method == "linear" else 3), lat

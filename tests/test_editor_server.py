@@ -324,6 +324,8 @@ def test_foreign_host_and_origin_are_refused(served):
     with httpx.Client(base_url=url) as c:
         r = c.post("/api/session", json={}, headers={"Origin": "http://evil.example"})
         assert r.status_code == 403 and "cross-site" in r.json()["error"]
+        r = c.post("/api/session", json={}, headers={"Origin": "http://127.0.0.1:1"})  # another local site
+        assert r.status_code == 403
         r = c.post("/api/session", json={}, headers={"Origin": url})
         assert r.status_code == 200
         page = c.get("/")
@@ -390,6 +392,16 @@ def test_live_loop_errors_and_oversized_messages(served, client):
             m4 = json.loads(await ws.recv())
         return m1, m2, m3, closed, m4
 
+    async def foreign():
+        try:
+            async with websockets_client.connect(_ws_url(url, sid), origin="http://evil.example") as ws:
+                await ws.recv()
+        except Exception as e:
+            return e
+        return None
+
+    refused = asyncio.run(foreign())
+    assert refused is not None  # a cross-site page cannot open the live socket
     m1, m2, m3, closed, m4 = asyncio.run(go())
     assert m1["type"] == "error" and "not valid JSON" in m1["message"]
     assert m2[0]["type"] == "error" and "cannot be removed" in m2[0]["message"]

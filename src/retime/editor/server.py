@@ -91,13 +91,16 @@ class Guard:
             host = host.rsplit(":", 1)[0]
         return host in self.allowed_hosts
 
-    def _origin_ok(self, origin: str | None) -> bool:
+    def _origin_ok(self, origin: str | None, host: str | None) -> bool:
+        """Same origin only: the page's own scheme-less host:port (another local server's page, on
+        another port, is a different origin and is refused too)."""
         if origin is None:
             return True  # not a browser cross-site request (curl, tests); browsers always send Origin
         if "://" not in origin:
             return False
         scheme, rest = origin.split("://", 1)
-        return scheme in ("http", "https") and self._host_ok(rest.split("/", 1)[0])
+        netloc = rest.split("/", 1)[0].lower()
+        return scheme == "http" and self._host_ok(netloc) and netloc == (host or "").strip().lower()
 
     async def __call__(self, scope, receive, send):
         if scope["type"] not in ("http", "websocket"):
@@ -105,7 +108,7 @@ class Guard:
         headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope.get("headers", [])}
         if not self._host_ok(headers.get("host")):
             return await _refuse(scope, receive, send, 400, "bad Host header: the editor answers only on 127.0.0.1")
-        if not self._origin_ok(headers.get("origin")) and (scope["type"] == "websocket" or scope.get("method") != "GET"):
+        if not self._origin_ok(headers.get("origin"), headers.get("host")) and (scope["type"] == "websocket" or scope.get("method") != "GET"):
             return await _refuse(scope, receive, send, 403, "cross-site request refused: open the editor's own page")
         if scope["type"] == "websocket":
             return await self.app(scope, receive, send)
