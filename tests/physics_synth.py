@@ -71,13 +71,21 @@ def jump_path(fps=120.0, vy0=2.0, vx=0.6, height=1.0, t_push=(1.0, 1.6), land=0.
             continue
         y[i], yd[i], ydd[i] = _poly(cf, x, 0), _poly(cf, x, 1), _poly(cf, x, 2)
     flight = (s >= b) & (s < s_land)
-    return s, height + y, yd, ydd, flight, vx
+    # horizontal speed: 0 while standing, vx in flight (smoothstep ramps during push and landing)
+    def ramp(x):
+        x = np.clip(x, 0.0, 1.0)
+        return x * x * (3 - 2 * x), 6 * x * (1 - x)
+    up, dup = ramp((s - a) / (b - a))
+    down, ddown = ramp((s - s_land) / land)
+    xd = vx * (up - down)
+    xdd = vx * (dup / (b - a) - ddown / land)
+    return s, height + y, yd, ydd, flight, xd, xdd
 
 
 def rigid_jump(gravity=(0.0, -G, 0.0), mass=70.0, fps=120.0, mu=0.5, vy0=2.0, vx=0.6, limits=None,
                noise=0.0, seed=0, total=3.0):
     """A jumping rigid body as PathDynamics (nv = 6 root + 2 leg + 2 arm rows, K = 16)."""
-    s, y, yd, ydd, flight, vx = jump_path(fps, vy0, vx, total=total)
+    s, y, yd, ydd, flight, vxs, vxd = jump_path(fps, vy0, vx, total=total)
     n = len(s)
     g = np.asarray(gravity, dtype=float)
     nv, K = 10, 16
@@ -85,8 +93,8 @@ def rigid_jump(gravity=(0.0, -G, 0.0), mass=70.0, fps=120.0, mu=0.5, vy0=2.0, vx
     b = np.zeros((n, nv))
     c = np.zeros((n, nv))
     N = np.zeros((n, nv, K))
-    xd = np.stack([np.full(n, vx), yd, np.zeros(n)], axis=1)
-    xdd = np.stack([np.zeros(n), ydd, np.zeros(n)], axis=1)
+    xd = np.stack([vxs, yd, np.zeros(n)], axis=1)
+    xdd = np.stack([vxd, ydd, np.zeros(n)], axis=1)
     a[:, :3] = mass * xd
     b[:, :3] = mass * xdd
     c[:, :3] = -mass * g
@@ -98,13 +106,15 @@ def rigid_jump(gravity=(0.0, -G, 0.0), mass=70.0, fps=120.0, mu=0.5, vy0=2.0, vx
     a[:, 6] = 0.05 * mass * yd
     b[:, 6] = 0.05 * mass * ydd
     c[:, 6] = -0.05 * mass * g[1]
-    a[:, 7] = 0.05 * mass * vx
+    a[:, 7] = 0.05 * mass * vxs
+    b[:, 7] = 0.05 * mass * vxd
     c[:, 7] = -0.05 * mass * g[0]
     # arm rows (no contact force): inertia and weight of an arm
     a[:, 8] = 0.02 * mass * yd
     b[:, 8] = 0.02 * mass * ydd
     c[:, 8] = -0.02 * mass * g[1] * 0.3
-    a[:, 9] = 0.02 * mass * vx
+    a[:, 9] = 0.02 * mass * vxs
+    b[:, 9] = 0.02 * mass * vxd
     c[:, 9] = -0.02 * mass * g[0] * 0.3 + 0.01 * mass * g[2]
     contact = ~flight
     corners = np.array([[0.12, 0, 0.05], [-0.08, 0, 0.05], [-0.08, 0, -0.05], [0.12, 0, -0.05]])

@@ -11,6 +11,15 @@ is a quadratic in (u, v) = (p'', p'^2): **six coefficients** per frame and wedge
 v^2 = p'^4, u^2 = p''^2, u v = p'^2 p'', v = p'^2, u = p'' and 1 (sec. 3.6). Baking them removes the
 dependence on the number of degrees of freedom from every later evaluation.
 
+**Excess torque error.** When the physics change (a quarter of the gravity, a heavier thigh),
+part of the torque difference cannot be removed by any timing: the target torques of ``"match"``
+hold up the original weight. Integrated over output time, that unreachable floor rewards playing such
+frames faster, whatever their dynamics (and with ``"minimize"`` and a free duration it would shrink
+the clip without end). By default (``excess=True``) each frame's torque term is therefore measured
+from the least value any timing could give it (exactly 0 at the original timing for ``"match"``
+with unchanged physics, so the paper's setting is unaffected); ``excess=False`` keeps Eq. 14 as
+written.
+
 **Integration.** The integral over output time is taken over source time instead,
 ``E = integral f / p' ds``, with samples at a fixed spacing of 1 / (samples_per_frame * fps) in
 source time (4 per source frame by default, as the paper asks: "at least once every quarter of a
@@ -43,6 +52,7 @@ class BakedObjective:
     px: np.ndarray
     py: np.ndarray
     cen: np.ndarray  # (n, 2)
+    scale: np.ndarray  # (n, 2) metric of the feasibility term: (u, v) -> (scale_u u, scale_v v)
     mode: np.ndarray  # (n,) 0 = fan wedges, 1 = one torque model + fan distance, 2 = degenerate polygon
     wc: np.ndarray  # (P, 6) torque coefficients per wedge (wedge k of frame i at poff[i] + k)
     alpha: float
@@ -53,6 +63,8 @@ class BakedObjective:
     fi: np.ndarray  # (Ns,) frame index of each sample
     fw: np.ndarray  # (Ns,) weight of frame fi + 1
     cache: np.ndarray  # (n,) last wedge per frame (amortized lookup)
+    gamma: float = 0.0  # weight of the speed regularizer gamma * ln(p')^2 per source second
+    delta: float = 0.0  # 0: alpha d^2 (Eq. 14); > 0: alpha (sqrt(d^2 + delta^2) - delta) (exact penalty)
     # unbaked data (NP-Obj): per wedge affine lambda and the dynamics
     seconds: float = 0.0
 
@@ -98,8 +110,37 @@ def actuated_mask(pd):
     return ~((lo == 0) & (hi == 0))
 
 
-def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_frame=4) -> BakedObjective:
-    """Bake Eq. 14 into per-frame, per-wedge coefficients (sec. 3.6)."""
+def residual_scales(pd, body_weight, moment_arm=1.0, floor=0.01, actuated_cost=0.0):
+    """Per frame, body weights of root wrench per unit of p'' and of p'^2: (n, 2).
+
+    The root rows of a timing (u, v) demand the external wrench a u + b v + c; moving by du needs
+    |a_root| du more of it. Scaling the (p'', p'^2) plane by these before measuring the distance to
+    the region makes the feasibility term count how much force a violation would take: a stance
+    frame played too fast costs what its small accelerations ask, a flight frame played too fast
+    costs (p'^2 - 1) body weights. ``floor`` keeps still frames from costing nothing at all."""
+    n_root = int(getattr(pd, "n_root", 6))
+    nr = np.asarray(pd.a).shape[1] if actuated_cost > 0 else n_root
+    a = np.asarray(pd.a, dtype=float)[:, :nr]
+    b = np.asarray(pd.b, dtype=float)[:, :nr]
+    w = np.full(nr, body_weight * moment_arm)
+    w[: min(3, n_root)] = body_weight
+    w[n_root:] /= max(actuated_cost, 1e-300)
+    if nr == 0:
+        return np.ones((len(a), 2))
+    su = np.linalg.norm(a / w, axis=1)
+    sv = np.linalg.norm(b / w, axis=1)
+    return np.maximum(np.stack([su, sv], axis=1), floor)
+
+
+def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_frame=4,
+         metric="residual", excess=True, gamma=0.0, u_max=None, v_range=None, penalty="l2",
+         delta=1e-3) -> BakedObjective:
+    """Bake Eq. 14 into per-frame, per-wedge coefficients (sec. 3.6).
+
+    ``metric``: ``"plane"`` measures the distance to the region in the (p'', p'^2) plane as the
+    paper does; ``"residual"`` (default) scales the plane per frame by :func:`residual_scales`.
+    ``excess``: subtract from each frame's torque term the least value any timing could give it
+    (see the module docstring); ``False`` keeps Eq. 14 literally.)"""
     import time
 
     t0 = time.perf_counter()
@@ -123,10 +164,30 @@ def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_f
     mode = np.where((mode == 0) & ~has_contact, 1, mode).astype(np.int64)
     wc = np.zeros((len(px), 6))
     _bake_kernel(a, b, c, N, tgt, poff, px, py, cen, lam, clam, mode, beta / tau_scale ** 2, wc)
+    if excess:
+        U = float(u_max if u_max is not None else regions.options.u_max)
+        vlo, vhi = v_range if v_range is not None else (0.0, float(regions.options.v_max))
+        _subtract_floor(poff, wc, U, float(vlo), float(vhi))
+    if metric == "plane":
+        scale = np.ones((len(poff) - 1, 2))
+    elif metric == "residual":
+        scale = residual_scales(pd, regions.body_weight or 1.0, regions.options.moment_arm)
+    elif metric == "residual_all":
+        scale = residual_scales(pd, regions.body_weight or 1.0, regions.options.moment_arm,
+                                actuated_cost=regions.options.actuated_slack_cost)
+    else:
+        raise RetimeError(f"unknown metric {metric!r} (use 'residual', 'residual_all' or 'plane')")
+    cnt = np.diff(poff)
+    sx = np.repeat(scale[:, 0], cnt)
+    sy = np.repeat(scale[:, 1], cnt)
     s, om, fi, fw = samples(regions.times, samples_per_frame)
-    out = BakedObjective(np.asarray(regions.times, float), poff, px, py, cen, mode, wc, float(alpha),
+    out = BakedObjective(np.asarray(regions.times, float), poff, px * sx, py * sy, cen * scale, scale, mode, wc,
+                         float(alpha),
                          float(beta), float(tau_scale), s, om, fi, fw,
-                         np.zeros(len(poff) - 1, dtype=np.int64))
+                         np.zeros(len(poff) - 1, dtype=np.int64), float(gamma),
+                         0.0 if penalty == "l2" else float(delta))
+    if penalty not in ("l1", "l2"):
+        raise RetimeError(f"unknown penalty {penalty!r} (use 'l2' or 'l1')")
     out.seconds = time.perf_counter() - t0
     return out
 
@@ -158,6 +219,51 @@ def _fan_modes(poff, px, py, cen):
                 mode[i] = 2
                 break
     return mode
+
+
+@njit(cache=True, inline="always")
+def _q(w, u, v):
+    return w[0] * v * v + w[1] * u * u + w[2] * u * v + w[3] * v + w[4] * u + w[5]
+
+
+@njit(cache=True)
+def _quad_min_box(w, U, vlo, vhi):
+    """Least value over [-U, U] x [vlo, vhi] of the convex quadratic
+    w0 v^2 + w1 u^2 + w2 u v + w3 v + w4 u + w5: interior stationary point, else an edge."""
+    h11, h12, h22 = 2.0 * w[1], w[2], 2.0 * w[0]
+    g1, g2 = w[4], w[3]
+    det = h11 * h22 - h12 * h12
+    tr = h11 + h22
+    if det > 1e-12 * (tr * tr + 1e-300):
+        u = -(h22 * g1 - h12 * g2) / det
+        v = -(-h12 * g1 + h11 * g2) / det
+        if -U <= u <= U and vlo <= v <= vhi:
+            return _q(w, u, v)
+    best = 1e300
+    # edges u = +-U (minimize over v), v = vlo / vhi (minimize over u)
+    for k in range(2):
+        u = -U if k == 0 else U
+        v = -(h12 * u + g2) / h22 if h22 > 0 else vlo
+        v = min(vhi, max(vlo, v))
+        best = min(best, _q(w, u, v), _q(w, u, vlo), _q(w, u, vhi))
+        v = vlo if k == 0 else vhi
+        u = -(h12 * v + g1) / h11 if h11 > 0 else 0.0
+        u = min(U, max(-U, u))
+        best = min(best, _q(w, u, v), _q(w, -U, v), _q(w, U, v))
+    return best
+
+
+@njit(cache=True)
+def _subtract_floor(poff, wc, U, vlo, vhi):
+    """Make each frame's torque term an excess over the least value any timing in the box gives it
+    (a lower bound: the smallest box-constrained minimum over the frame's wedge quadratics)."""
+    for i in range(len(poff) - 1):
+        lo = 1e300
+        for k in range(poff[i], poff[i + 1]):
+            lo = min(lo, _quad_min_box(wc[k], U, vlo, vhi))
+        if lo < 1e300:
+            for k in range(poff[i], poff[i + 1]):
+                wc[k, 5] -= lo
 
 
 @njit(cache=True)
@@ -266,8 +372,10 @@ def _edge_proj(p0, nv, e, px, py, u, v):
 
 
 @njit(cache=True)
-def _frame_eval(i, u, v, poff, px, py, cen, mode, wc, cache, alpha):
-    """f, df/du, df/dv of frame i at (u, v) = (p'', p'^2)."""
+def _frame_eval(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache, alpha, delta):
+    """f, df/du, df/dv of frame i at (u, v) = (p'', p'^2) (polygon and centre in the frame's metric)."""
+    su, sv = scale[i, 0], scale[i, 1]
+    u, v = su * u0, sv * v0
     p0, p1 = poff[i], poff[i + 1]
     nv = p1 - p0
     md = mode[i]
@@ -323,17 +431,21 @@ def _frame_eval(i, u, v, poff, px, py, cen, mode, wc, cache, alpha):
                     else:
                         break
     w = wc[p0 + k] if md == 0 else wc[p0]
-    g = w[0] * v * v + w[1] * u * u + w[2] * u * v + w[3] * v + w[4] * u + w[5]
-    gu = 2.0 * w[1] * u + w[2] * v + w[4]
-    gv = 2.0 * w[0] * v + w[2] * u + w[3]
+    g = w[0] * v0 * v0 + w[1] * u0 * u0 + w[2] * u0 * v0 + w[3] * v0 + w[4] * u0 + w[5]
+    gu = 2.0 * w[1] * u0 + w[2] * v0 + w[4]
+    gv = 2.0 * w[0] * v0 + w[2] * u0 + w[3]
     du, dv = u - qx, v - qy
-    f = alpha * (du * du + dv * dv) + g
-    return f, 2.0 * alpha * du + gu, 2.0 * alpha * dv + gv
+    d2 = du * du + dv * dv
+    if delta <= 0.0:
+        return alpha * d2 + g, 2.0 * alpha * du * su + gu, 2.0 * alpha * dv * sv + gv
+    r = math.sqrt(d2 + delta * delta)
+    k = alpha / r
+    return alpha * (r - delta) + g, k * du * su + gu, k * dv * sv + gv
 
 
 @njit(cache=True)
-def _evaluate(c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, mode, wc, cache, alpha,
-              want_grad, gc):
+def _evaluate(c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode, wc, cache, alpha, delta,
+              gamma, want_grad, gc):
     """Objective (and gradient w.r.t. c and T when want_grad) of the spline with coefficients c."""
     n_span = len(breaks) - 1
     # power coefficients of each span
@@ -398,20 +510,21 @@ def _evaluate(c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, mode, wc, 
         wgt = fw[jj]
         f, fu, fv = 0.0, 0.0, 0.0
         if wgt < 1.0:
-            f0, fu0, fv0 = _frame_eval(i, u, v, poff, px, py, cen, mode, wc, cache, alpha)
+            f0, fu0, fv0 = _frame_eval(i, u, v, poff, px, py, cen, scale, mode, wc, cache, alpha, delta)
             f += (1.0 - wgt) * f0
             fu += (1.0 - wgt) * fu0
             fv += (1.0 - wgt) * fv0
         if wgt > 0.0:
-            f1, fu1, fv1 = _frame_eval(i + 1, u, v, poff, px, py, cen, mode, wc, cache, alpha)
+            f1, fu1, fv1 = _frame_eval(i + 1, u, v, poff, px, py, cen, scale, mode, wc, cache, alpha, delta)
             f += wgt * f1
             fu += wgt * fu1
             fv += wgt * fv1
         om = omega[jj]
-        total += om * f / pd
+        lg = math.log(pd)
+        total += om * (f / pd + gamma * lg * lg)
         if want_grad:
-            # h = f / p' with u = p'', v = p'^2
-            hp = om * (2.0 * fv - f / (pd * pd))
+            # h = f / p' + gamma ln(p')^2 with u = p'', v = p'^2
+            hp = om * (2.0 * fv - f / (pd * pd) + 2.0 * gamma * lg / pd)
             hpp = om * fu / pd
             gT += hp * (-pd * invT) + hpp * (-2.0 * pdd * invT)
             for l in range(4):
@@ -432,8 +545,8 @@ def evaluate(obj: BakedObjective, spline, w=None, grad=False):
     T = spline.duration_of(w)
     gc = np.zeros(len(c))
     val, gT = _evaluate(c, T, spline.breaks, spline.span_matrices, obj.s, obj.omega, obj.fi, obj.fw,
-                        obj.poff, obj.px, obj.py, obj.cen, obj.mode, obj.wc, obj.cache, obj.alpha,
-                        grad, gc)
+                        obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc, obj.cache, obj.alpha,
+                        obj.delta, obj.gamma, grad, gc)
     if not grad:
         return float(val)
     return float(val), spline.chain(gc, gT, w)
@@ -443,15 +556,20 @@ def evaluate_c(obj: BakedObjective, spline, c, T, grad=False):
     """E and (dE/dc, dE/dT) for raw coefficients (tests, benchmarks)."""
     gc = np.zeros(len(c))
     val, gT = _evaluate(np.asarray(c, float), float(T), spline.breaks, spline.span_matrices, obj.s, obj.omega,
-                        obj.fi, obj.fw, obj.poff, obj.px, obj.py, obj.cen, obj.mode, obj.wc, obj.cache,
-                        obj.alpha, grad, gc)
+                        obj.fi, obj.fw, obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc,
+                        obj.cache, obj.alpha, obj.delta, obj.gamma, grad, gc)
     return (float(val), gc, float(gT)) if grad else float(val)
 
 
 def frame_terms(obj: BakedObjective, i, u, v):
-    """(distance to region, torque term) of frame i at (u, v): for reports and tests."""
-    f, _, _ = _frame_eval(int(i), float(u), float(v), obj.poff, obj.px, obj.py, obj.cen, obj.mode, obj.wc,
-                          obj.cache, 0.0)
-    fa, _, _ = _frame_eval(int(i), float(u), float(v), obj.poff, obj.px, obj.py, obj.cen, obj.mode, obj.wc,
-                           obj.cache, 1.0)
+    """(distance to the region in the objective's metric, torque term) of frame i at (u, v)."""
+    args = (obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc, obj.cache)
+    f, _, _ = _frame_eval(int(i), float(u), float(v), *args, 0.0, 0.0)
+    fa, _, _ = _frame_eval(int(i), float(u), float(v), *args, 1.0, 0.0)
     return math.sqrt(max(fa - f, 0.0)), f
+
+
+def frame_gradient(obj: BakedObjective, i, u, v):
+    """(f, df/du, df/dv) of frame i with the baked weights (tests)."""
+    return _frame_eval(int(i), float(u), float(v), obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc,
+                       obj.cache, obj.alpha, obj.delta)

@@ -29,20 +29,30 @@ computed here per frame:
 * The (u, v) box ``|p''| <= u_max``, ``0 <= p'^2 <= v_max`` bounds the search (a still frame accepts
   any timing; the box stands for "anything reasonable").
 
-**Relaxation of empty regions.** Motion capture with an estimated body is never exactly physical: in
-flight the six root rows (linear and angular momentum) rarely have a common solution, and a foot may
-sit where it cannot support the body. When a frame's region is empty, a second LP finds the smallest
-residual that makes it feasible: slack variables on every row, costing 1 per newton of residual root
-force, 1 per newton-metre / ``moment_arm`` of residual root moment, and ``actuated_slack_cost`` times
-that for exceeding a torque limit, all divided by the body weight (mass x 9.81 m/s^2). The rows are
-then widened by their residual plus ``relax_pad`` (1% of the body weight by default, so the region has
-some extent), and the region is recomputed. A frame whose needed residual exceeds ``max_relaxation``
-(5% of body weight) is flagged ``implausible``; it still gets its (larger) region, so the optimizer
-never meets an empty one. The effective torque bounds of every frame are kept (``lo``, ``hi``) so
-that anything computed afterwards can be checked against them.
+**Relaxation: the data's own inconsistency is the yardstick.** Motion capture with an estimated
+body is never exactly physical: in flight the centre-of-mass acceleration of the captured motion
+differs from g by 10-30% from frame to frame, and a foot may sit where it cannot quite carry the body.
+Taken literally, the original timing would be infeasible at such frames, and a retiming with
+unchanged physics would move away from it. So each frame gets a *residual budget*: the smallest row
+residual (least weighted L1 over slack variables: 1 per newton of root force, 1 per newton-metre /
+``moment_arm`` of root moment, ``actuated_slack_cost`` times that beyond a torque limit, all per body
+weight = mass x 9.81 m/s^2) with which the **original timing (0, 1) under the original physics** is
+feasible (:func:`source_fit`; zero at frames that are physical as captured). The frame's rows are
+widened by that residual plus ``relax_pad`` (1% of the body weight) and the region is computed with
+them, for the original physics and for changed ones alike: a retiming is feasible at a frame when it
+needs no more residual root wrench than the captured motion itself did, plus 1% of body weight. With
+unchanged physics the original timing is therefore always feasible.
 
-Per frame the result also records ``source_distance``: how far the original timing (0, 1) lies
-outside the region in the (p'', p'^2) plane (0 when it is feasible).
+If a region is still empty (changed physics can ask for more than the body can give), the smallest
+extra residual is found the same way over all timings in the box, added with the pad, and reported
+as ``relaxation`` (fraction of body weight); frames needing more than ``max_relaxation`` (5%) are
+flagged ``implausible``. No frame is ever left without a region, so the optimizer never meets an
+empty one. The bounds actually used are kept (``lo``, ``hi``) so that everything computed afterwards
+can be checked against them.
+
+Per frame the result also records ``source_residual`` (the budget in body weights: how far the
+original timing is from feasible as captured) and ``source_distance`` (how far (0, 1) lies outside
+the final region in the (p'', p'^2) plane; 0 with unchanged physics).
 """
 from __future__ import annotations
 
@@ -67,9 +77,10 @@ class RegionOptions:
     v_max: float = 25.0
     method: str = "parametric"  # "parametric" (HiGHS + shadow-vertex walk) or "highs" (refinement)
     tol: float = 1e-3  # "highs": polygon accuracy in the (p'', p'^2) plane
-    relax: bool = True
-    relax_pad: float = 0.01  # fraction of body weight added around the minimal residual
-    max_relaxation: float = 0.05  # frames needing more than this are flagged implausible
+    relax: bool = True  # False: exact regions (an empty one is an error)
+    allowance: float = 0.05  # residual root wrench every frame may use, fraction of body weight
+    relax_pad: float = 0.01  # fraction of body weight added around every residual budget
+    max_relaxation: float = 0.05  # frames needing more extra relaxation are flagged implausible
     moment_arm: float = 1.0  # metres: a root moment of W * moment_arm counts like a force of W
     actuated_slack_cost: float = 10.0
     body_weight: float | None = None  # newtons; default: estimated from the gravity term
@@ -96,7 +107,10 @@ class RegionSet:
     center_lam: np.ndarray
     lo: np.ndarray
     hi: np.ndarray
-    relaxation: np.ndarray  # fraction of body weight the frame needed (0 = exact)
+    budget: np.ndarray  # (n, nv) row residuals the captured motion needs (original physics)
+    source_residual: np.ndarray  # (n,) their weighted sum, in body weights
+    lam0: np.ndarray  # (n, K) contact coefficients of the original timing (original physics)
+    relaxation: np.ndarray  # extra relaxation beyond the budget, fraction of body weight (0 = none)
     relaxed: np.ndarray
     implausible: np.ndarray
     source_distance: np.ndarray
@@ -588,6 +602,9 @@ class _FrameResult:
     center_lam: np.ndarray
     lo: np.ndarray
     hi: np.ndarray
+    budget: np.ndarray
+    source_residual: float
+    lam0: np.ndarray
     relaxation: float
     relaxed: bool
     source_distance: float
@@ -596,9 +613,17 @@ class _FrameResult:
 
 
 def _row_weights(n_root, nv, body_weight, opts):
+    """Newtons per unit of residual: body weight on the root force rows, weight x moment arm on the
+    root moment rows and on the joint rows."""
     w = np.full(nv, body_weight * opts.moment_arm)
     w[: min(3, n_root)] = body_weight
     return w
+
+
+def _row_costs(n_root, nv, body_weight, opts):
+    cost = 1.0 / _row_weights(n_root, nv, body_weight, opts)
+    cost[n_root:] *= opts.actuated_slack_cost
+    return cost
 
 
 def _box_polygon(opts, K):
@@ -607,140 +632,270 @@ def _box_polygon(opts, K):
     return P, np.zeros((4, K))
 
 
-def _halfplanes(a2, b2, lo2, hi2):
-    """Rows lo <= a u + b v <= hi as normalized half-planes (a, b, c): a u + b v <= c."""
-    rows = []
-    nrm = np.hypot(a2, b2)
-    scale = np.maximum(nrm, 1e-300)
-    big = nrm > 1e-12 * (1.0 + np.abs(lo2) + np.abs(hi2))
-    for k in range(len(a2)):
-        if big[k]:
+def _split(a, b, lo, hi, rho, rows):
+    """Rows lo - rho v <= a u + b v (+ ...) <= hi + rho v as one-sided or ranged LP rows.
+
+    Returns (coefficient of u, of v, lower, upper, source row) per LP row: a row without budget
+    stays ranged; a row with budget rho > 0 becomes an upper row with v-coefficient b - rho and a
+    lower row with b + rho."""
+    rows = np.asarray(rows, dtype=int)
+    r0 = rows[rho[rows] <= 0]
+    r1 = rows[rho[rows] > 0]
+    cu = np.r_[a[r0], a[r1], a[r1]]
+    cv = np.r_[b[r0], b[r1] - rho[r1], b[r1] + rho[r1]]
+    lo_ = np.r_[lo[r0], np.full(len(r1), -_INF), lo[r1]]
+    hi_ = np.r_[hi[r0], hi[r1], np.full(len(r1), _INF)]
+    src = np.r_[r0, r1, r1]
+    return cu, cv, lo_, hi_, src
+
+
+def _halfplanes(a, b, c, lo, hi, rho, rows):
+    """Rows without contact forces as normalized half-planes (a, b, c): a u + b v <= c."""
+    cu, cv, lo_, hi_, src = _split(a, b, lo, hi, rho, rows)
+    lo2 = lo_ - c[src]
+    hi2 = hi_ - c[src]
+    out = []
+    nrm = np.hypot(cu, cv)
+    for k in range(len(cu)):
+        if nrm[k] > 1e-12 * (1.0 + min(abs(lo2[k]), abs(hi2[k]))):
             if hi2[k] < _INF * 0.5:
-                rows.append((a2[k] / scale[k], b2[k] / scale[k], hi2[k] / scale[k]))
+                out.append((cu[k] / nrm[k], cv[k] / nrm[k], hi2[k] / nrm[k]))
             if lo2[k] > -_INF * 0.5:
-                rows.append((-a2[k] / scale[k], -b2[k] / scale[k], -lo2[k] / scale[k]))
-        else:  # a row the timing cannot change: lo <= 0 <= hi or infeasible
-            rows.append((0.0, 0.0, min(hi2[k], -lo2[k]) if np.isfinite(hi2[k] + lo2[k]) else 0.0))
-    return np.array(rows, dtype=float).reshape(-1, 3)
+                out.append((-cu[k] / nrm[k], -cv[k] / nrm[k], -lo2[k] / nrm[k]))
+        else:  # a row the timing cannot change: feasible iff lo <= 0 <= hi
+            out.append((0.0, 0.0, min(hi2[k], -lo2[k])))
+    return np.array(out, dtype=float).reshape(-1, 3)
 
 
-def _relax_bounds(a, b, c, N, lo, hi, act, n_root, body_weight, opts):
-    """Least weighted-L1 residual that makes the frame feasible; returns widened (lo, hi), level."""
+def _residual_lp(a, b, c, N, lo, hi, rho, act, n_root, body_weight, opts, fix=None):
+    """Least weighted-L1 row residual that makes the frame feasible, over all (u, v) in the box or at
+    ``fix`` = (u, v). Returns (residual per row (nv,) in N or N m, total in body-weight units)."""
+    import highspy
+
     nv = len(a)
-    w = _row_weights(n_root, nv, body_weight, opts)
-    cost_row = 1.0 / w
-    cost_row[n_root:] *= opts.actuated_slack_cost
-    Na = N[:, act]
-    K = Na.shape[1]
-    # columns: u, v, lam (K), s+ (nv), s- (nv)
-    A = np.hstack([a[:, None], b[:, None], -Na, np.eye(nv), -np.eye(nv)])
-    col_lo = np.r_[-opts.u_max, 0.0, np.zeros(K + 2 * nv)]
-    col_hi = np.r_[opts.u_max, opts.v_max, np.full(K + 2 * nv, _INF)]
+    cost_row = _row_costs(n_root, nv, body_weight, opts)
+    K = len(act)
+    cu, cv, lo_, hi_, src = _split(a, b, lo, hi, rho, np.arange(nv))
+    m = len(src)
+    S = np.zeros((m, nv))
+    S[np.arange(m), src] = 1.0
+    # columns: u, v, lam (K), s+ (nv), s- (nv); row value + s+ - s- within its bounds
+    A = np.hstack([cu[:, None], cv[:, None], -N[np.ix_(src, act)], S, -S])
+    if fix is None:
+        col_lo = np.r_[-opts.u_max, 0.0, np.zeros(K + 2 * nv)]
+        col_hi = np.r_[opts.u_max, opts.v_max, np.full(K + 2 * nv, _INF)]
+    else:
+        col_lo = np.r_[fix[0], fix[1], np.zeros(K + 2 * nv)]
+        col_hi = np.r_[fix[0], fix[1], np.full(K + 2 * nv, _INF)]
     cost = np.r_[0.0, 0.0, np.zeros(K), cost_row, cost_row]
     h = _new_highs()
     h.setOptionValue("simplex_strategy", 1)
-    h.passModel(_highs_lp(A, col_lo, col_hi, lo - c, hi - c, cost))
+    h.passModel(_highs_lp(A, col_lo, col_hi, lo_ - c[src], hi_ - c[src], cost))
     h.run()
-    import highspy
-
-    if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:  # cannot happen: slacks are free
-        raise RetimeError("relaxation LP failed")
+    if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:  # slacks are free: cannot happen
+        raise RetimeError("internal: the relaxation LP failed")
     x = np.asarray(h.getSolution().col_value)
-    rho = x[2 + K: 2 + K + nv] - x[2 + K + nv:]
-    widen = np.abs(rho)
-    widen[np.abs(rho) <= 1e-9 * w] = 0.0
-    pad = opts.relax_pad * w
-    grow = widen + np.where((widen > 0) | (np.arange(nv) < n_root), pad, 0.0)
-    lo2, hi2 = lo - grow, hi + grow
-    level = float(np.max(grow / w))
-    return lo2, hi2, level
+    r = np.abs(x[2 + K: 2 + K + nv] - x[2 + K + nv:])
+    r[r <= 1e-9 * _row_weights(n_root, nv, body_weight, opts)] = 0.0
+    return r, float(np.sum(r * cost_row))
 
 
-def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_root: int,
-                 relaxed_bounds=None) -> _FrameResult:
-    """The feasible polygon of one frame (see the module docstring)."""
-    from .forces import solve_center
+def residual_at(pd, regions, i, u, v) -> float:
+    """Extra residual (body weights, weighted L1 as in the relaxation) that the timing (u, v) needs
+    at frame ``i`` beyond the frame's region bounds: 0 inside the region."""
+    opts = regions.options
+    bw = regions.body_weight
+    n_root = unactuated_rows(pd)
+    a, b, c, N = (np.asarray(x[i], dtype=float) for x in (pd.a, pd.b, pd.c, pd.N))
+    lo = regions.lo[i] - regions.budget[i] * v
+    hi = regions.hi[i] + regions.budget[i] * v
+    act = np.flatnonzero(np.any(N != 0.0, axis=0))
+    if len(act) == 0:
+        val = a * u + b * v + c
+        r = np.abs(val - np.clip(val, lo, hi))
+        return float(np.sum(r * _row_costs(n_root, len(a), bw, opts)))
+    _, res = _residual_lp(a, b, c, N, lo, hi, np.zeros(len(a)), act, n_root, bw, opts, fix=(float(u), float(v)))
+    return res
+
+
+def _widen(lo, hi, amount, pad):
+    grow = np.where(amount > 0, amount + pad, 0.0)
+    return lo - grow, hi + grow
+
+
+def _lp_rows(N, act, nv):
+    if len(act) == 0:
+        return np.zeros(0, dtype=int), np.arange(nv)
+    rows = np.flatnonzero(np.any(N[:, act] != 0.0, axis=1))
+    return rows, np.setdiff1d(np.arange(nv), rows)
+
+
+def _frame_lp(a, b, c, N, lo, hi, rho, act, rows, opts):
+    cu, cv, lo_, hi_, src = _split(a, b, lo, hi, rho, rows)
+    A = np.hstack([cu[:, None], cv[:, None], -N[np.ix_(src, act)]])
+    return FrameLP(A, lo_ - c[src], hi_ - c[src], opts.u_max, opts.v_max)
+
+
+def _point_ok(a, b, c, lo, hi, rows, u, v, tol):
+    val = a[rows] * u + b[rows] * v + c[rows]
+    return bool(np.all(val >= lo[rows] - tol) and np.all(val <= hi[rows] + tol))
+
+
+def source_fit(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_root: int):
+    """How far the original timing (0, 1) is from feasible at one frame (original physics).
+
+    Returns (budget (nv,) = |row residual| the captured motion needs at (0, 1), that residual in
+    body-weight units, lam0 (K,) least-force contact coefficients at (0, 1) once the rows are
+    widened by the budget and the pad, number of LP solves)."""
+    from .forces import force_weights, solve_center
 
     nv, Kall = N.shape
     act = np.flatnonzero(np.any(N != 0.0, axis=0))
+    rows, other = _lp_rows(N, act, nv)
+    w = _row_weights(n_root, nv, body_weight, opts)
+    tol = 1e-9 * body_weight
+    lam0 = np.zeros(Kall)
+    zero = np.zeros(nv)
     n_lp = 0
-    n_piv = 0
-    relaxed = relaxed_bounds is not None
-    level = 0.0
-    if relaxed:
-        lo, hi, level = relaxed_bounds
-    lp_rows = np.flatnonzero(np.any(N[:, act] != 0.0, axis=1)) if len(act) else np.zeros(0, dtype=int)
-    other = np.setdiff1d(np.arange(nv), lp_rows)
-    H = _halfplanes(a[other], b[other], lo[other] - c[other], hi[other] - c[other])
-    eps = 1e-9 * (opts.u_max + opts.v_max)
-    P = L = None
+    if len(act) == 0:
+        val = b + c
+        r = np.abs(val - np.clip(val, lo, hi))
+        r[r <= tol] = 0.0
+        return r, float(np.sum(r * _row_costs(n_root, nv, body_weight, opts))), lam0, 0
+    fw = force_weights(N[:, act], n_root)
+    if _point_ok(a, b, c, lo, hi, other, 0.0, 1.0, tol):
+        lp = _frame_lp(a, b, c, N, lo, hi, zero, act, rows, opts)
+        lam = solve_center(lp, 0.0, 1.0, fw)
+        n_lp += 1
+        if lam is not None:
+            lam0[act] = np.maximum(lam, 0.0)
+            return zero, 0.0, lam0, n_lp
+    budget, res = _residual_lp(a, b, c, N, lo, hi, zero, act, n_root, body_weight, opts, fix=(0.0, 1.0))
+    n_lp += 1
+    lo1, hi1 = _widen(lo, hi, budget, opts.relax_pad * w)
+    lp = _frame_lp(a, b, c, N, lo1, hi1, zero, act, rows, opts)
+    lam = solve_center(lp, 0.0, 1.0, fw)
+    n_lp += 1
+    if lam is not None:
+        lam0[act] = np.maximum(lam, 0.0)
+    return budget, res, lam0, n_lp
+
+
+def _trace(lp, opts, x0):
+    """Polygon vertices (k, 2 + n_lam) of an LP whose first solve gave x0; (X, pivots)."""
+    X = None
+    piv = 0
+    if opts.method == "parametric":
+        basic, up = lp.basis()
+        zl = np.r_[lp.col_lo, lp.row_lo]
+        zu = np.r_[lp.col_hi, lp.row_hi]
+        if len(basic) == lp.m:
+            V, Xw, status, piv = _walk(lp.A, zl, zu, basic, up, 0.5 * math.pi, 2000)
+            if status == 0 and len(Xw) >= 1:
+                X = Xw
+    if X is None:
+        X = _trace_highs(lp, opts.tol, first=x0)
+    return X, piv
+
+
+def _polygon(a, b, c, N, lo, hi, rho, act, rows, other, opts, Kall, eps):
+    """Clipped polygon, its lambdas, the LP (None in flight), LP solves, pivots; P is None if empty."""
+    H = _halfplanes(a, b, c, lo, hi, rho, other)
     lp = None
+    n_lp = 0
+    piv = 0
     if len(act) == 0:
         P, L = _box_polygon(opts, Kall)
     else:
-        A = np.hstack([a[lp_rows, None], b[lp_rows, None], -N[np.ix_(lp_rows, act)]])
-        lp = FrameLP(A, lo[lp_rows] - c[lp_rows], hi[lp_rows] - c[lp_rows], opts.u_max, opts.v_max)
+        lp = _frame_lp(a, b, c, N, lo, hi, rho, act, rows, opts)
         x0 = lp.maximize(0.0, 1.0)
+        P = L = None
         if x0 is not None:
-            X = None
-            if opts.method == "parametric":
-                basic, up = lp.basis()
-                zl = np.r_[lp.col_lo, lp.row_lo]
-                zu = np.r_[lp.col_hi, lp.row_hi]
-                if len(basic) == lp.m:
-                    V, Xw, status, piv = _walk(lp.A, zl, zu, basic, up, 0.5 * math.pi, 400)
-                    n_piv += piv
-                    if status == 0 and len(Xw) >= 1:
-                        X = Xw
-            if X is None:
-                X = _trace_highs(lp, opts.tol, first=x0)
+            X, piv = _trace(lp, opts, x0)
             if X is not None:
                 P = X[:, :2].copy()
                 L = np.zeros((len(X), Kall))
                 L[:, act] = np.maximum(X[:, 2:], 0.0)
         n_lp += lp.n_solves
-    ok = P is not None
-    if ok:
-        px, py, pl, ok = _clip_halfplanes(P[:, 0].copy(), P[:, 1].copy(), L, H, eps)
-        if ok:
-            P = np.column_stack([px, py])
-            L = pl
-            P, L = _dedupe(P, L, eps)
-            ok = len(P) >= 1
+        if P is None:
+            return None, None, lp, n_lp, piv
+    px, py, pl, ok = _clip_halfplanes(P[:, 0].copy(), P[:, 1].copy(), L, H, eps)
     if not ok:
-        if relaxed or not opts.relax:
-            if not opts.relax:
-                raise RetimeError("empty feasible region (relaxation is off)")
-            raise RetimeError("feasible region still empty after relaxation")
-        n_root = int(n_root)
-        lo2, hi2, lvl = _relax_bounds(a, b, c, N, lo, hi, act, n_root, body_weight, opts)
-        res = frame_region(a, b, c, N, lo, hi, opts, body_weight, n_root, relaxed_bounds=(lo2, hi2, lvl))
-        res.n_lp += n_lp + 1
-        return res
-    # fan centre (sec. 3.4)
+        return None, None, lp, n_lp, piv
+    P, L = _dedupe(np.column_stack([px, py]), pl, eps)
+    if len(P) == 0:
+        return None, None, lp, n_lp, piv
+    return P, L, lp, n_lp, piv
+
+
+def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_root: int,
+                 budget=None) -> _FrameResult:
+    """The feasible polygon of one frame (see the module docstring).
+
+    ``budget`` (nv,): row residuals the captured motion needs at this frame under the original
+    physics (:func:`source_fit`); ``None`` means these coefficients *are* the original physics and the
+    budget is fitted here. Row r is then bounded by ``lo - (pad + budget) p'^2 ... hi + ...``
+    (``pad`` only on rows with a budget): the captured motion's inconsistency is taken to come from
+    its accelerations, so it grows with p'^2."""
+    from .forces import force_weights, solve_center
+
+    a, b, c, N = (np.asarray(x, dtype=float) for x in (a, b, c, N))
+    lo = np.asarray(lo, dtype=float)
+    hi = np.asarray(hi, dtype=float)
+    nv, Kall = N.shape
+    act = np.flatnonzero(np.any(N != 0.0, axis=0))
+    rows, other = _lp_rows(N, act, nv)
+    w = _row_weights(n_root, nv, body_weight, opts)
+    pad = opts.relax_pad * w
+    eps = 1e-9 * (opts.u_max + opts.v_max)
+    n_lp = 0
+    if budget is None:
+        budget, src_res, lam0, k = source_fit(a, b, c, N, lo, hi, opts, body_weight, n_root)
+        n_lp += k
+    else:
+        budget = np.asarray(budget, dtype=float)
+        src_res = float(np.sum(budget * _row_costs(n_root, nv, body_weight, opts)))
+        lam0 = np.zeros(Kall)
+    if not opts.relax:
+        budget = np.zeros(nv)
+    lo1 = lo - np.where(budget > 0, pad, 0.0)
+    hi1 = hi + np.where(budget > 0, pad, 0.0)
+    P, L, lp, k, piv = _polygon(a, b, c, N, lo1, hi1, budget, act, rows, other, opts, Kall, eps)
+    n_lp += k
+    level = 0.0
+    relaxed = False
+    if P is None:
+        if not opts.relax:
+            raise RetimeError("empty feasible region (relaxation is off)")
+        extra, _ = _residual_lp(a, b, c, N, lo1, hi1, budget, act, n_root, body_weight, opts)
+        n_lp += 1
+        lo1, hi1 = _widen(lo1, hi1, extra, pad)
+        level = float(np.max(np.where(extra > 0, (extra + pad) / w, 0.0)))
+        relaxed = True
+        P, L, lp, k, piv2 = _polygon(a, b, c, N, lo1, hi1, budget, act, rows, other, opts, Kall, eps)
+        n_lp += k
+        piv += piv2
+        if P is None:
+            raise RetimeError("internal: feasible region still empty after relaxation")
+    # fan centre (sec. 3.4): the original timing, or the nearest feasible point pulled inwards
     target = np.asarray(opts.center, dtype=float)
     q, dist = closest_point(P, target)
     center = q
     if dist > 0 and len(P) >= 3:
-        centroid = P.mean(axis=0)
-        center = q + 0.02 * (centroid - q)
+        center = q + 0.02 * (P.mean(axis=0) - q)
     clam = np.zeros(Kall)
     if lp is not None:
-        from .forces import force_weights
-
         lam_c = solve_center(lp, center[0], center[1], force_weights(N[:, act], n_root))
-        if lam_c is None:  # only on the clipped edge of numerical noise: use the nearest vertex blend
-            lam_c = _interp_on_polygon(P, L, center)[act]
-        clam[act] = lam_c
         n_lp += 1
-    return _FrameResult(P, L, center, clam, lo, hi, level, relaxed, dist, n_lp, n_piv)
+        if lam_c is None:  # the centre sits on a clipped edge within round-off: nearest vertex
+            lam_c = _interp_on_polygon(P, L, center)[act]
+        clam[act] = np.maximum(lam_c, 0.0)
+    return _FrameResult(P, L, center, clam, lo1, hi1, budget, src_res, lam0, level, relaxed, dist, n_lp, piv)
 
 
 def _interp_on_polygon(P, L, point):
-    """Contact coefficients at a point of the polygon by mean-value weights of the nearest edge."""
     d = np.hypot(P[:, 0] - point[0], P[:, 1] - point[1])
-    k = int(np.argmin(d))
-    return L[k]
+    return L[int(np.argmin(d))]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -748,6 +903,9 @@ def _interp_on_polygon(P, L, point):
 # ------------------------------------------------------------------------------------------------
 
 def unactuated_rows(pd) -> int:
+    n = getattr(pd, "n_root", None)
+    if n is not None:
+        return int(n)
     lo, hi = np.asarray(pd.tau_lo), np.asarray(pd.tau_hi)
     free = (lo == 0) & (hi == 0)
     n = 0
@@ -757,13 +915,18 @@ def unactuated_rows(pd) -> int:
 
 
 def estimate_body_weight(pd) -> float:
-    """Body weight at standard gravity from the root's gravity force (|c_root force| = m |g|)."""
+    """Body weight at standard gravity: total mass x 9.81 when known, else |root gravity force|."""
+    m = getattr(pd, "total_mass", None) or getattr(pd, "mass", None)
+    if m:
+        return float(m) * STANDARD_G
     n_root = unactuated_rows(pd)
+    g = getattr(pd, "gravity", None)
     if n_root >= 3:
-        f = np.linalg.norm(np.asarray(pd.c)[:, :3], axis=1)
-        w = float(np.median(f))
-        if w > 0:
-            return w
+        f = float(np.median(np.linalg.norm(np.asarray(pd.c)[:, :3], axis=1)))
+        if g is not None and np.linalg.norm(g) > 0:
+            f *= STANDARD_G / float(np.linalg.norm(g))
+        if f > 0:
+            return f
     return float(np.median(np.linalg.norm(np.asarray(pd.c), axis=1))) or 1.0
 
 
@@ -771,32 +934,63 @@ _SHARED = {}
 
 
 def _work(frames):
-    pd, opts, bw, n_root = _SHARED["args"]
-    return [_one(pd, i, opts, bw, n_root) for i in frames]
+    pd, ref, opts, bw, n_root = _SHARED["args"]
+    return [_one(pd, ref, i, opts, bw, n_root) for i in frames]
 
 
-def _one(pd, i, opts, bw, n_root):
+def base_bounds(pd, opts, bw, n_root):
+    """Torque bounds with the residual allowance on the root rows: the modelling error every frame
+    may use, ``allowance`` (5%) of the body's weight under the current gravity (|g| / 9.81 times
+    the standard body weight) -- biomechanics accepts residual forces of a few percent of body
+    weight in inverse dynamics of captured motion."""
     lo = np.asarray(pd.tau_lo, dtype=float).copy()
     hi = np.asarray(pd.tau_hi, dtype=float).copy()
-    return frame_region(np.asarray(pd.a[i], float), np.asarray(pd.b[i], float), np.asarray(pd.c[i], float),
-                        np.asarray(pd.N[i], float), lo, hi, opts, bw, n_root)
+    if opts.relax and opts.allowance > 0 and n_root:
+        g = getattr(pd, "gravity", None)
+        gscale = 1.0 if g is None else float(np.linalg.norm(g)) / STANDARD_G
+        w = _row_weights(n_root, len(lo), bw, opts)[:n_root]
+        lo[:n_root] -= opts.allowance * gscale * w
+        hi[:n_root] += opts.allowance * gscale * w
+    return lo, hi
 
 
-def compute_regions(pd, options: RegionOptions | None = None, frames=None, progress=False) -> RegionSet:
-    """Feasible regions and the contact-force model (centre LP) of every sample of ``pd``."""
+def _one(pd, ref, i, opts, bw, n_root):
+    lo, hi = base_bounds(pd, opts, bw, n_root)
+    budget = None
+    n_ref = 0
+    lam0 = res0 = None
+    if ref is not None:
+        rlo, rhi = base_bounds(ref, opts, bw, n_root)
+        budget, res0, lam0, n_ref = source_fit(np.asarray(ref.a[i], float), np.asarray(ref.b[i], float),
+                                               np.asarray(ref.c[i], float), np.asarray(ref.N[i], float),
+                                               rlo, rhi, opts, bw, n_root)
+    r = frame_region(pd.a[i], pd.b[i], pd.c[i], pd.N[i], lo, hi, opts, bw, n_root, budget=budget)
+    if ref is not None:
+        r.lam0, r.source_residual = lam0, res0
+        r.n_lp += n_ref
+    return r
+
+
+def compute_regions(pd, options: RegionOptions | None = None, reference=None, frames=None,
+                    progress=False) -> RegionSet:
+    """Feasible regions and the contact-force model (centre LP) of every sample of ``pd``.
+
+    ``reference``: the path dynamics of the *original* physics when ``pd`` has changed parameters
+    (gravity, masses, ...); the frames' residual budgets and the original timing's contact forces
+    (``lam0``) come from it. ``None``: ``pd`` is the original physics."""
     import time
 
     opts = options or RegionOptions()
     if opts.method not in ("parametric", "highs"):
         raise RetimeError(f"unknown region method {opts.method!r} (use 'parametric' or 'highs')")
     t0 = time.perf_counter()
-    n = len(pd.times) if frames is None else len(frames)
     idx = np.arange(len(pd.times)) if frames is None else np.asarray(frames)
-    bw = float(opts.body_weight) if opts.body_weight else estimate_body_weight(pd)
+    n = len(idx)
+    bw = float(opts.body_weight) if opts.body_weight else estimate_body_weight(reference or pd)
     n_root = unactuated_rows(pd)
     workers = opts.workers
     if workers is None:
-        workers = min(2, os.cpu_count() or 1) if n >= 200 else 1
+        workers = min(2, os.cpu_count() or 1) if n >= 120 else 1
     results = None
     if workers > 1 and n >= 2 * workers:
         import multiprocessing as mp
@@ -806,8 +1000,8 @@ def compute_regions(pd, options: RegionOptions | None = None, frames=None, progr
         except ValueError:
             ctx = None
         if ctx is not None:
-            _SHARED["args"] = (pd, opts, bw, n_root)
-            chunks = [list(c) for c in np.array_split(idx, 4 * workers) if len(c)]
+            _SHARED["args"] = (pd, reference, opts, bw, n_root)
+            chunks = [list(ch) for ch in np.array_split(idx, 4 * workers) if len(ch)]
             try:
                 with ctx.Pool(workers) as pool:
                     parts = pool.map(_work, chunks)
@@ -820,26 +1014,30 @@ def compute_regions(pd, options: RegionOptions | None = None, frames=None, progr
             from tqdm import tqdm
 
             it = tqdm(idx, desc="feasible regions", unit="frame", disable=None)
-        results = [_one(pd, int(i), opts, bw, n_root) for i in it]
+        results = [_one(pd, reference, int(i), opts, bw, n_root) for i in it]
     K = np.asarray(pd.N).shape[2]
     offsets = np.zeros(n + 1, dtype=np.int64)
     offsets[1:] = np.cumsum([len(r.verts) for r in results])
+    contact = getattr(pd, "contact", None)
     rs = RegionSet(
         times=np.asarray(pd.times, dtype=float)[idx],
         offsets=offsets,
         verts=np.concatenate([r.verts for r in results]).reshape(-1, 2),
         lam=np.concatenate([r.lam for r in results]).reshape(-1, K),
-        center=np.array([r.center for r in results]),
+        center=np.array([r.center for r in results]).reshape(n, 2),
         center_lam=np.array([r.center_lam for r in results]).reshape(n, K),
         lo=np.array([r.lo for r in results]),
         hi=np.array([r.hi for r in results]),
+        budget=np.array([r.budget for r in results]),
+        source_residual=np.array([r.source_residual for r in results]),
+        lam0=np.array([r.lam0 for r in results]).reshape(n, K),
         relaxation=np.array([r.relaxation for r in results]),
         relaxed=np.array([r.relaxed for r in results], dtype=bool),
         implausible=np.array([r.relaxation > opts.max_relaxation for r in results], dtype=bool),
         source_distance=np.array([r.source_distance for r in results]),
         n_lp=np.array([r.n_lp for r in results], dtype=np.int64),
         n_pivots=np.array([r.n_pivots for r in results], dtype=np.int64),
-        contact=np.asarray(pd.contact)[idx] if getattr(pd, "contact", None) is not None else np.zeros((n, 0), bool),
+        contact=np.asarray(contact)[idx] if contact is not None else np.zeros((n, 0), bool),
         options=opts,
         body_weight=bw,
     )

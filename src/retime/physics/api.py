@@ -1,0 +1,173 @@
+"""Physics-based retiming in one call (McCann, Pollard, Srinivasa 2006).
+
+    result = physics_warp(motion, duration=None, gravity=(0, -9.81, 0), objective="match")
+    retimed = apply_timing(motion, result.curve)
+
+Pipeline: path dynamics of the motion (:mod:`retime.physics.dynamics`, computed once; gravity and mass
+changes recombine them), feasible regions and contact forces per frame (:mod:`.regions`,
+:mod:`.forces`), the objective of Eq. 14 baked per frame (:mod:`.objective`), and the timing spline
+optimized from the uniform timing (:mod:`.optimize`). ``result.session`` continues interactively.
+
+Defaults, and why (measured on CMU jumps 16_06, 16_03, 13_11, 118_26; see the tests and README):
+
+* ``alpha = 10`` with ``penalty = "l1"``: the feasibility term is an exact penalty
+  ``alpha * (sqrt(d^2 + delta^2) - delta)`` of the distance d to the region, measured in body weights of
+  residual force (``metric = "residual"``, :func:`objective.residual_scales`). Eq. 14's squared
+  distance (``penalty = "l2"``, ``metric = "plane"``) spreads an unavoidable violation (halving a
+  jump) thinly over many frames; the exact penalty keeps it on the few frames where it costs the
+  least force, so most frames stay feasible (16_06 at half duration: 78% -> 93% of frames feasible).
+* ``beta = 0.1``: torques (normalized by the original's RMS torque) choose among physical timings;
+  ``excess = True`` measures them from what any timing could reach (see :mod:`.objective`).
+* ``gamma = 0.1``: a weak pull of the playback speed towards 1 (``gamma * ln(p')^2`` per source
+  second), so frames that physics leaves free keep their original timing instead of drifting.
+* control points every ``knot_spacing`` = 0.05 s of source time; 4 objective samples per source frame.
+* ``smoothing = 0.05`` s: the path is low-passed (Gaussian) for the dynamics. The timing spline cannot
+  follow anything faster, and twice-differentiated capture noise would otherwise decide how fast a
+  still stance may be played (:mod:`.dynamics` uses 0.025 s by default).
+
+Without ``duration`` (and ``scale``) the duration is free: the optimizer chooses it.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import RetimeError
+from ..warp import TimingCurve, snap_duration
+from .objective import BakedObjective, bake, target_torques
+from .optimize import Problem, RetimingSession, SolveInfo, check_keytimes, solve
+from .regions import RegionOptions, RegionSet, compute_regions
+from .report import build_report
+from .spline import TimingSpline
+
+STANDARD_GRAVITY = (0.0, -9.81, 0.0)
+
+
+@dataclass
+class PhysicsResult:
+    curve: TimingCurve
+    report: dict
+    spline: TimingSpline
+    session: RetimingSession
+    dynamics: object
+    regions: RegionSet
+    objective: BakedObjective
+    info: SolveInfo
+    timings: dict = field(default_factory=dict)
+
+
+def _changed(gravity, mass_factors, friction, torque_scale):
+    g = np.asarray(gravity, dtype=float)
+    return (not np.allclose(g, STANDARD_GRAVITY) or bool(mass_factors) or friction is not None
+            or float(torque_scale) != 1.0)
+
+
+DEFAULT_SMOOTHING = 0.05
+
+
+def prepare(motion, gravity=STANDARD_GRAVITY, mass_factors=None, objective="match", body=None, contacts=None,
+            friction=None, torque_scale=1.0, alpha=10.0, beta=0.1, samples_per_frame=4, region_options=None,
+            terms=None, progress=False, timings=None, gamma=0.1, metric="residual", excess=True,
+            w_min=0.02, w_max=12.0, penalty="l1", smoothing=DEFAULT_SMOOTHING):
+    """Dynamics, regions and the baked objective: everything but the spline."""
+    from .dynamics import dynamics_terms
+
+    timings = {} if timings is None else timings
+    t0 = time.perf_counter()
+    if terms is None:
+        terms = dynamics_terms(motion, body, contacts=contacts, smoothing=smoothing)
+    pd0 = terms.combine()
+    changed = _changed(gravity, mass_factors, friction, torque_scale)
+    pd = terms.combine(gravity=gravity, mass_factors=mass_factors, friction=friction,
+                       torque_scale=torque_scale) if changed else pd0
+    timings["dynamics"] = time.perf_counter() - t0
+    opts = region_options or RegionOptions()
+    if opts.body_weight is None:
+        opts.body_weight = float(pd0.total_mass) * 9.81
+    if opts.v_max < 25.0:
+        opts.v_max = 25.0
+    t0 = time.perf_counter()
+    regions = compute_regions(pd, opts, reference=pd0 if changed else None, progress=progress)
+    timings["regions"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    if objective == "match":
+        lam0 = regions.lam0
+        target = np.asarray(pd0.b) + np.asarray(pd0.c) - np.einsum("nvk,nk->nv", np.asarray(pd0.N), lam0)
+    else:
+        target = target_torques(objective, pd0, regions)
+    tau0 = np.asarray(pd0.b) + np.asarray(pd0.c) - np.einsum("nvk,nk->nv", np.asarray(pd0.N), regions.lam0)
+    act = ~((np.asarray(pd.tau_lo) == 0) & (np.asarray(pd.tau_hi) == 0))
+    tau_scale = float(np.sqrt(np.mean(np.sum(tau0[:, act] ** 2, axis=1)))) or 1.0
+    obj = bake(pd, regions, target, alpha=alpha, beta=beta, tau_scale=tau_scale,
+               samples_per_frame=samples_per_frame, metric=metric, excess=excess, gamma=gamma,
+               v_range=(w_min ** 2, min(opts.v_max, w_max ** 2)), penalty=penalty)
+    timings["bake"] = time.perf_counter() - t0
+    return terms, pd, regions, obj
+
+
+def make_problem(obj, source_duration, duration=None, keytimes=(), knot_spacing=0.05, w_min=0.02, w_max=12.0):
+    S = float(source_duration)
+    kt = check_keytimes(keytimes, S, duration)
+    n_spans = max(4, int(np.ceil(S / knot_spacing)))
+    spline = TimingSpline.uniform(S, n_spans, duration)
+    if kt:
+        # start from the piecewise-linear keytime timing (constraints then hold up to the fit)
+        T = duration if duration is not None else S
+        ts = np.r_[0.0, [t for _, t in kt], T if duration is not None else max(T, kt[-1][1] + (S - kt[-1][0]))]
+        ss = np.r_[0.0, [s for s, _ in kt], S]
+        slopes = np.diff(ss) / np.diff(ts)
+
+        def speed(t):
+            k = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(slopes) - 1)
+            return slopes[k]
+
+        spline = TimingSpline.fit(spline.interior, S, duration if duration is not None else ts[-1],
+                                  None, speed, w_min=w_min)
+        if duration is None:
+            spline.fixed_T = None
+    return Problem(obj, spline, keytimes=kt, w_min=w_min, w_max=max(w_max, 1.5 * S / (duration or S)))
+
+
+def physics_warp(motion, duration=None, scale=None, gravity=STANDARD_GRAVITY, mass_factors=None, objective="match",
+                 keytimes=(), body=None, contacts=None, friction=None, torque_scale=1.0, alpha=10.0, beta=0.1,
+                 method="lbfgs", knot_spacing=0.05, samples_per_frame=4, region_options=None, terms=None,
+                 max_iter=1000, progress=False, gamma=0.1, metric="residual", excess=True,
+                 penalty="l1", smoothing=DEFAULT_SMOOTHING) -> PhysicsResult:
+    """Retime ``motion`` physically; see the module docstring. ``duration`` in seconds (or ``scale``
+    times the source duration; neither: free duration). ``keytimes``: [(source s, output s)].
+    ``mass_factors``: {segment name: factor}."""
+    if objective not in ("match", "minimize"):
+        raise RetimeError(f"unknown objective {objective!r} (use 'match' or 'minimize')")
+    fps = float(motion.fps)
+    S = motion.duration
+    if scale is not None:
+        if duration is not None:
+            raise RetimeError("give a duration or a scale, not both")
+        duration = S * float(scale)
+    if duration is not None:
+        if not duration > 0:
+            raise RetimeError(f"duration must be positive, got {duration}")
+        duration = snap_duration(duration, fps)
+    timings = {}
+    terms, pd, regions, obj = prepare(motion, gravity, mass_factors, objective, body, contacts, friction, torque_scale,
+                                      alpha, beta, samples_per_frame, region_options, terms, progress, timings,
+                                      gamma=gamma, metric=metric, excess=excess, penalty=penalty,
+                                      smoothing=smoothing)
+    problem = make_problem(obj, S, duration, keytimes, knot_spacing)
+    session = RetimingSession(problem, method=method, fps=fps)
+    t0 = time.perf_counter()
+    info = session.reconverge(max_iter=max_iter)
+    timings["optimize"] = time.perf_counter() - t0
+    spline = session.spline
+    if spline.free and not problem.keytimes:
+        # put the free duration on the output frame grid (a uniform stretch of < half a frame)
+        T = spline.duration
+        Ts = snap_duration(T, fps)
+        spline.w = spline.w * (T / Ts)
+    curve = spline.timing_curve(fps)
+    report = build_report(spline, pd, regions, fps, info=info,
+                          extra={"objective_kind": objective, "gravity": [float(x) for x in np.asarray(gravity)],
+                                 "mass_factors": dict(mass_factors or {}), "timings": {k: round(v, 4) for k, v in timings.items()}})
+    return PhysicsResult(curve, report, spline, session, pd, regions, obj, info, timings)
