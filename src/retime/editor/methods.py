@@ -13,6 +13,7 @@ physics treat them as handles the optimizer may move.
 """
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import math
 import time
@@ -109,6 +110,7 @@ class Job:
     ops: list = field(default_factory=list)
     held: int | None = None
     status: Callable[[str], None] = lambda message: None  # progress line for the page (long steps)
+    keytimes: list = field(default_factory=list)  # (source, output) kept apart from the points (physics)
 
     def ops_since(self, version):
         """Edits after ``version``, or None if the log does not reach back that far."""
@@ -284,7 +286,11 @@ class PhysicsMethod(Method):
         terms_pd_regions_obj = _physics_prepared(self.clip, key, job.status)
         self.prepared = terms_pd_regions_obj
         obj = terms_pd_regions_obj[3]
-        keytimes = [(p.s, p.t) for p in job.points[1:-1] if p.locked]
+        if dataclasses.is_dataclass(obj) and hasattr(obj, "cache"):
+            # the baked objective is shared by the sessions; its lookup hints are per session
+            obj = dataclasses.replace(obj, cache=np.array(obj.cache, copy=True))
+        keytimes = {(round(p.s, 9), round(p.t, 9)) for p in job.points[1:-1] if p.locked}
+        keytimes = sorted(keytimes | {(round(a, 9), round(b, 9)) for a, b in job.keytimes})
         problem = make_problem(obj, self.clip.motion.duration, job.duration, keytimes)
         self.rs = RetimingSession(problem, fps=self.clip.motion.fps)
         self.key, self.temp_lock = key, None

@@ -37,6 +37,7 @@ class Snapshot:
     duration: float
     ops: list  # every (version, op) applied so far that a stateful method may still need to replay
     held: int | None = None  # the control point the user is holding (dragging), if any
+    keytimes: list = None  # (source, output) keytimes kept apart from the points (physics)
 
 
 class Session:
@@ -60,6 +61,7 @@ class Session:
         self.last_used = time.monotonic()
         self.op_log: list[tuple[int, dict]] = []  # (version, op) for stateful adapters; bounded
         self.held = None
+        self.keytimes: list[tuple[float, float]] = []  # (source, output) kept apart from points (physics)
 
     # -- edits ----------------------------------------------------------------------------------
     @property
@@ -80,6 +82,8 @@ class Session:
             points = [ControlPoint(p.t, p.s, p.locked) for p in self.points]
             method, params = self.method, {k: dict(v) for k, v in self.params.items()}
             held = self.held
+            self._merged = False
+            self._kt = list(self.keytimes)  # edited alongside the points, kept only if all edits apply
             for op in ops:
                 method = self._apply_one(op, points, method, params)
                 if op["op"] == "move":
@@ -87,6 +91,7 @@ class Session:
                 elif op["op"] in ("release", "add", "remove", "reset", "duration", "method"):
                     held = None
             self.points, self.method, self.params, self.held = points, method, params, held
+            self.keytimes = [] if self._merged else self._kt
             self.version += 1
             self.op_log.extend((self.version, dict(op)) for op in ops)
             del self.op_log[:-OP_LOG]
@@ -99,8 +104,9 @@ class Session:
         kind = op["op"]
         if kind == "move":
             i = self._index(op, points)
-            t = _num(op, "t") if METHODS[method].point_axes == "ts" or i == len(points) - 1 else points[i].t
-            self._move(points, i, t, _num(op, "s"))
+            spline = METHODS[method].point_axes == "s"  # knots fixed in normalized time
+            t = _num(op, "t") if not spline or i == len(points) - 1 else points[i].t
+            self._move(points, i, t, _num(op, "s"), scale_inner=spline)
         elif kind == "add":
             self._add(points, _num(op, "t"), _num(op, "s"), bool(op.get("locked", False)))
         elif kind == "remove":
@@ -120,6 +126,8 @@ class Session:
             reason = METHODS[name].availability(self.clip)
             if reason:
                 raise RetimeError(reason)
+            if METHODS[name].point_axes == "ts" and self._kt and not self._merged:
+                self._merge_keytimes(points)
             method = name
         elif kind == "params":
             name = op.get("method", method)
@@ -132,9 +140,26 @@ class Session:
         elif kind == "reset":
             S = self.source_duration
             points[:] = [ControlPoint(0.0, 0.0, True), ControlPoint(S, S, True)]
+            self._merged = True  # (drops the keytimes)
         else:
             raise RetimeError(f"unknown edit {kind!r}")
         return method
+
+    def _merge_keytimes(self, points):
+        """Keytimes a method kept apart (physics) become locked points again for the other methods;
+        points within a frame of one give way to it."""
+        gap = self._gap()
+        for src, out in self._kt:
+            points[:] = [p for i, p in enumerate(points) if i in (0, len(points) - 1) or abs(p.t - out) >= gap]
+            k = int(np.searchsorted([p.t for p in points], out))
+            if 0 < k < len(points) and points[k - 1].s < src < points[k].s:
+                points.insert(k, ControlPoint(float(out), float(src), True))
+            else:  # not monotone with the points around it: those give way too
+                points[:] = [p for i, p in enumerate(points) if i in (0, len(points) - 1)
+                             or (p.t < out and p.s < src) or (p.t > out and p.s > src)]
+                k = int(np.searchsorted([p.t for p in points], out))
+                points.insert(k, ControlPoint(float(out), float(src), True))
+        self._merged = True
 
     @staticmethod
     def _index(op, points):
@@ -146,14 +171,14 @@ class Session:
     def _gap(self):
         return 1.0 / self.fps
 
-    def _move(self, points, i, t, s):
+    def _move(self, points, i, t, s, scale_inner=False):
         """Move point i, clamped so that the curve stays monotone (the ends keep their source time)."""
         gap, n = self._gap(), len(points)
         S = self.source_duration
         if i == 0:
             return  # (0, 0) is fixed
         if i == n - 1:
-            self._set_duration(points, t, scale_inner=False)
+            self._set_duration(points, t, scale_inner=scale_inner, clamp=True)
             return
         lo_t, hi_t = points[i - 1].t + gap, points[i + 1].t - gap
         lo_s, hi_s = points[i - 1].s + S_GAP, points[i + 1].s - S_GAP
@@ -176,11 +201,11 @@ class Session:
         s = float(np.clip(s, points[k - 1].s + S_GAP, points[k].s - S_GAP))
         points.insert(k, ControlPoint(float(t), s, locked))
 
-    def _set_duration(self, points, duration, scale_inner=True):
+    def _set_duration(self, points, duration, scale_inner=True, clamp=False):
         S = self.source_duration
         lo, hi = max(S * MIN_SPEED, 2 / self.fps), S * MAX_SPEED
         if not (lo <= duration <= hi):
-            if not scale_inner:
+            if clamp:
                 duration = float(np.clip(duration, lo, hi))
             else:
                 raise RetimeError(f"duration {duration:g} s is outside {lo:.3g} .. {hi:.3g} s "
@@ -190,11 +215,12 @@ class Session:
         if scale_inner:
             for p in points[1:-1]:
                 p.t *= T / old
+            self._kt = [(src, out * T / old) for src, out in self._kt]
         elif len(points) > 2:
             T = max(T, points[-2].t + self._gap())
         points[-1].t = T
         points[-1].s = S
-        # points squeezed closer than a frame by scaling: drop the unlocked ones, keep order valid
+        # points squeezed closer than a frame apart by the scaling are dropped (the order stays valid)
         k = 1
         while k < len(points) - 1:
             if points[k].t - points[k - 1].t < self._gap() or points[-1].t - points[k].t < self._gap():
@@ -207,7 +233,7 @@ class Session:
         with self.lock:
             return Snapshot(self.version, self.method, [ControlPoint(p.t, p.s, p.locked) for p in self.points],
                             dict(self.params.setdefault(self.method, default_params(self.method, self.clip))),
-                            self.duration, list(self.op_log), self.held)
+                            self.duration, list(self.op_log), self.held, list(self.keytimes))
 
     def adapter(self, name):
         if name not in self.adapters:
@@ -222,7 +248,7 @@ class Session:
                 return
             adapter = self.adapter(snap.method)
             job = Job(snap.points, snap.params, snap.duration, stale, snap.version, snap.ops, snap.held,
-                      status or (lambda message: None))
+                      status or (lambda message: None), list(snap.keytimes or []))
             try:
                 for sol in adapter.solve(job):
                     with self.lock:
@@ -232,6 +258,8 @@ class Session:
                             self.points = [ControlPoint(p.t, p.s, p.locked) for p in sol.points]
                         if sol.final:
                             self.solution, self.solution_version = sol, snap.version
+                            if sol.keytimes is not None:
+                                self.keytimes = [(float(a), float(b)) for a, b in sol.keytimes]
                             self._good = (self.method, [ControlPoint(p.t, p.s, p.locked) for p in self.points],
                                           {k: dict(v) for k, v in self.params.items()})
                     yield sol
