@@ -31,7 +31,7 @@ from scipy.interpolate import CubicSpline
 from retime.errors import RetimeError
 from retime.guided import dp
 from retime.guided.features import FeatureWeights, lowpass, positions_in_root_frame
-from retime.guided.heuristic import solve_heuristic
+from retime.guided.heuristic import solve_heuristic, solve_upper_bound
 from retime.guided.postprocess import moving_average
 from retime.guided.problem import SolveStats, WarpProblem, solve_exact
 from retime.motion import Motion, forward_kinematics
@@ -102,6 +102,16 @@ def _sample(poses, fps, times):
         return np.stack([np.interp(u, np.arange(F), poses[:, c]) for c in range(poses.shape[1])], axis=1)
     spline = CubicSpline(np.arange(F) / fps, poses, axis=0)
     return spline(np.clip(times, 0.0, (F - 1) / fps))
+
+
+def analysis_poses(motion: Motion, fps: float = 30.0, prefilter: float = 0.1, times=None) -> np.ndarray:
+    """(frames, D) low-passed root-frame joint positions (m) at ``fps`` (or at ``times`` seconds)."""
+    x = root_frame_poses(motion)
+    x = x.reshape(x.shape[0], -1)
+    x = lowpass(x, max(1, int(round(prefilter * motion.fps))))
+    if times is None:
+        times = np.arange(int(math.floor(motion.duration * fps + 1e-9)) + 1) / fps
+    return _sample(x, motion.fps, np.asarray(times, dtype=float))
 
 
 def _segments(S, T, keytimes, A):
@@ -266,8 +276,8 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
             t0 = time.perf_counter()
             F = problem.scores()
             stats.objective_s += time.perf_counter() - t0
-            progress.say("heuristic upper bound")
-            hsol, _, hstats = solve_heuristic(problem, F)
+            progress.say("upper bound")
+            hsol, _, hstats = solve_upper_bound(problem, F)
             ub = hsol.objective
             stats.extra["heuristic_objective"] = ub
             stats.extra["heuristic_s"] = hstats.optimization_s

@@ -313,7 +313,9 @@ def solve_fixed(F, m, fixed=None, band=None, parallel=None) -> Solution:
     bp = np.zeros(int(offs[-1]), dtype=np.uint8)
     work = int(widths.sum()) * s * s
     if parallel is None:
-        parallel = work > 4_000_000 and numba.get_num_threads() > 1
+        # one barrier per output frame: on a busy 2-core machine a descheduled thread stalls every
+        # step, so the search runs on one thread unless asked otherwise
+        parallel = False
     if parallel:
         fn = compiled(_dp_parallel, _DP_SIG)
         nchunks = 4 * numba.get_num_threads()
@@ -475,6 +477,63 @@ def _lagrange_backward(F, s, lam):
     return Bw
 
 
+@njit(cache=True)
+def _lagrange_path(F, s, lam):
+    """Frames of a minimiser of cost + lam * steps from frame 0 to the last frame."""
+    n = F.shape[0]
+    Fw = np.full((n, s), INF)
+    arg = np.zeros((n, s), dtype=np.int64)
+    for j in range(1, min(s, n - 1) + 1):
+        Fw[j, j - 1] = lam
+    for j in range(1, n - 1):
+        for e in range(1, s + 1):
+            k = j + e
+            if k >= n:
+                break
+            best = INF
+            bd = 0
+            for d in range(1, s + 1):
+                if j - d < 0:
+                    break
+                v = Fw[j, d - 1] + F[j, d - 1, e - 1]
+                if v < best:
+                    best = v
+                    bd = d
+            v = best + lam
+            if v < Fw[k, e - 1]:
+                Fw[k, e - 1] = v
+                arg[k, e - 1] = bd
+    e = 1
+    for q in range(2, s + 1):
+        if Fw[n - 1, q - 1] < Fw[n - 1, e - 1]:
+            e = q
+    out = [n - 1]
+    k = n - 1
+    while k - e > 0:
+        j = k - e
+        out.append(j)
+        d = arg[k, e - 1]
+        k = j
+        e = d
+    out.append(0)
+    res = np.empty(len(out), dtype=np.int64)
+    for q in range(len(out)):
+        res[q] = out[len(out) - 1 - q]
+    return res
+
+
+def lagrange_path(F, m):
+    """The warp minimising cost + lam * steps whose length is closest to m (any length)."""
+    F = np.ascontiguousarray(F, dtype=np.float64)
+    hist = lagrange_multipliers(F, m)
+    best = None
+    for _, lam in hist[:8]:
+        path = _lagrange_path(F, F.shape[1], lam)
+        if best is None or abs(len(path) - m) < abs(len(best) - m):
+            best = path
+    return best
+
+
 def lagrange_multipliers(F, m, iters=48):
     """Step prices lam with their dual values min_path(cost + lam steps) - lam (m - 1) <= optimum.
 
@@ -580,7 +639,10 @@ def _paint(PA, PB, m, ascending):
     return out
 
 
-def prune_band(F, m, band: Band, upper_bound: float, n_multipliers: int = 6) -> Band:
+PRICE_SPREAD = (-3.0, -1.0, -0.3, -0.1, -0.03, -0.01, 0.0, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
+
+
+def prune_band(F, m, band: Band, upper_bound: float, spread=PRICE_SPREAD) -> Band:
     """The band cut down to positions/frames that can still lie on a warp costing <= upper_bound.
 
     For a vertex (i, j) with j at output position p and step prices a, b:
@@ -595,7 +657,11 @@ def prune_band(F, m, band: Band, upper_bound: float, n_multipliers: int = 6) -> 
     hist = lagrange_multipliers(F, m)
     if not hist:
         return band
-    lams = np.array(sorted({lam for _, lam in hist[:n_multipliers]}))
+    lam0 = hist[0][1]
+    finite = F[:, :, :s][np.isfinite(F[:, :, :s])]
+    scale = float(np.median(finite)) if finite.size else 1.0
+    # a spread of step prices: the bound for a vertex at an unlikely position needs steep ones
+    lams = np.array(sorted({lam0 + scale * f for f in spread}))
     Fws = np.stack([_lagrange_forward(F, s, lam)[0] for lam in lams])
     Bws = np.stack([_lagrange_backward(F, s, lam) for lam in lams])
     ub = float(upper_bound) * (1 + 1e-9) + 1e-9

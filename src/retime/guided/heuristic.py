@@ -83,12 +83,35 @@ def corridor(problem: WarpProblem, cpos, cfrm, cpath, radius: int) -> dp.Band:
     return dp.feasible_band(problem.n, m, problem.s, problem.fixed, lower, upper)
 
 
+def solve_upper_bound(problem: WarpProblem, F, stats: SolveStats | None = None):
+    """A near-optimal feasible warp from the full score table, for pruning the exact search.
+
+    The better of the coarse-to-fine warp and a corridor search around the Lagrangian path (the
+    cheapest warp of any length under the step price that makes its length closest to m).
+    """
+    stats = stats if stats is not None else SolveStats()
+    sol, F, stats = solve_heuristic(problem, F, stats=stats)
+    t0 = time.perf_counter()
+    path = dp.lagrange_path(F, problem.m)
+    if path is not None and len(path) >= 2:
+        pos = np.linspace(0, problem.m - 1, len(path))
+        try:
+            band = corridor(problem, pos, path, np.arange(len(path)), 2 * problem.s)
+            alt = dp.solve_fixed(F, problem.m, band=band)
+            if alt.objective < sol.objective:
+                sol = alt
+        except dp.InfeasibleWarp:
+            pass
+    stats.optimization_s += time.perf_counter() - t0
+    return sol, F, stats
+
+
 def solve_heuristic(problem: WarpProblem, F=None, factor: int | None = None, radius: int | None = None,
                     refine: int = 4, coarse_scores: str = "rows", stats: SolveStats | None = None):
     """Coarse-to-fine warp: (Solution, score table, stats).
 
     F: full score table if already computed (else only the rows and corridor scores needed
-    are computed, the rest of the returned table is inf). factor: subsampling (default 8, less
+    are computed, the rest of the returned table is inf). factor: subsampling (default 4, less
     for short problems so that the coarse problem keeps some 40 output frames). radius: corridor
     half-width in grid frames (default 2 s). refine: further corridor passes around the previous
     result while it improves.
@@ -98,7 +121,7 @@ def solve_heuristic(problem: WarpProblem, F=None, factor: int | None = None, rad
         raise ValueError("the coarse-to-fine heuristic needs a fixed number of output frames")
     n, m, s = problem.n, problem.m, problem.s
     if factor is None:
-        factor = int(min(8, max(2, m // 40)))
+        factor = int(min(4, max(2, m // 40)))
     c = int(factor)
     radius = 2 * s if radius is None else int(radius)
     if m < 4 * c or n < 4 * c:  # too small to coarsen: solve exactly

@@ -40,6 +40,7 @@ from retime.guided._jit import compiled, single_threaded_blas
 from retime.guided.features import reference_features, triple_features
 
 INF = np.inf
+_CHUNK = 1024  # references per chunk in the exact kNN kernel (a multiple of 8)
 
 
 @njit(cache=True, inline="always")
@@ -78,77 +79,131 @@ def _knn3_kernel(PI, PJ, PK, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out):
     references at a time go through a branch-free sorted-insertion network (per lane the three
     smallest so far: c = min(c, max(b, v)); b = min(b, max(a, v)); a = min(a, v)), which the
     SLP vectoriser turns into AVX min/max; the 24 lane survivors are merged at the end.
+    References are taken in chunks of _CHUNK so that the s base rows and s PK rows of a middle
+    frame stay in the L2 cache while its s^2 triples are scanned (the network state of each
+    triple is kept between chunks). Arrays are padded to Rp references (zz with inf).
     Slices with literal indices keep numba from emitting negative-index checks.
     """
-    R = zz.shape[0]
     Rp = PK.shape[1]
     for j in prange(j0, j1):
         ne = min(s, n - 1 - j)
         if ne <= 0:
             continue
-        base = np.empty(Rp)
-        for r in range(R, Rp):
-            base[r] = INF
-        cand = np.empty(24)
+        state = np.full((s, ne, 24), INF)
+        base = np.empty((s, min(_CHUNK, Rp)))
         top = np.empty(3)
         rj = j - t0
+        pj = PJ[rj]
+        for r0 in range(0, Rp, _CHUNK):
+            L = min(_CHUNK, Rp - r0)
+            for d in range(1, s + 1):
+                i = j - d
+                if i < 0:
+                    break
+                if not mask[j, d - 1]:
+                    continue
+                pi = PI[i - t0]
+                bd = base[d - 1]
+                for q in range(L):
+                    bd[q] = zz[r0 + q] - 2.0 * (pi[r0 + q] + pj[r0 + q])
+                for e in range(ne):
+                    row = PK[rj + 1 + e, r0:r0 + L]
+                    st = state[d - 1, e]
+                    a0 = st[0]
+                    a1 = st[1]
+                    a2x = st[2]
+                    a3 = st[3]
+                    a4 = st[4]
+                    a5 = st[5]
+                    a6 = st[6]
+                    a7 = st[7]
+                    b0 = st[8]
+                    b1 = st[9]
+                    b2x = st[10]
+                    b3 = st[11]
+                    b4 = st[12]
+                    b5 = st[13]
+                    b6 = st[14]
+                    b7 = st[15]
+                    c0 = st[16]
+                    c1 = st[17]
+                    c2x = st[18]
+                    c3 = st[19]
+                    c4 = st[20]
+                    c5 = st[21]
+                    c6 = st[22]
+                    c7 = st[23]
+                    for q in range(0, L, 8):
+                        bb = bd[q:q + 8]
+                        rr = row[q:q + 8]
+                        v0 = bb[0] - 2.0 * rr[0]
+                        v1 = bb[1] - 2.0 * rr[1]
+                        v2 = bb[2] - 2.0 * rr[2]
+                        v3 = bb[3] - 2.0 * rr[3]
+                        v4 = bb[4] - 2.0 * rr[4]
+                        v5 = bb[5] - 2.0 * rr[5]
+                        v6 = bb[6] - 2.0 * rr[6]
+                        v7 = bb[7] - 2.0 * rr[7]
+                        # sorted insertion network: c = min(c, max(b, v)); b = min(b, max(a, v)); a = min(a, v)
+                        t0_ = b0 if b0 > v0 else v0; c0 = t0_ if t0_ < c0 else c0
+                        t1_ = b1 if b1 > v1 else v1; c1 = t1_ if t1_ < c1 else c1
+                        t2_ = b2x if b2x > v2 else v2; c2x = t2_ if t2_ < c2x else c2x
+                        t3_ = b3 if b3 > v3 else v3; c3 = t3_ if t3_ < c3 else c3
+                        t4_ = b4 if b4 > v4 else v4; c4 = t4_ if t4_ < c4 else c4
+                        t5_ = b5 if b5 > v5 else v5; c5 = t5_ if t5_ < c5 else c5
+                        t6_ = b6 if b6 > v6 else v6; c6 = t6_ if t6_ < c6 else c6
+                        t7_ = b7 if b7 > v7 else v7; c7 = t7_ if t7_ < c7 else c7
+                        u0 = a0 if a0 > v0 else v0; b0 = u0 if u0 < b0 else b0
+                        u1 = a1 if a1 > v1 else v1; b1 = u1 if u1 < b1 else b1
+                        u2 = a2x if a2x > v2 else v2; b2x = u2 if u2 < b2x else b2x
+                        u3 = a3 if a3 > v3 else v3; b3 = u3 if u3 < b3 else b3
+                        u4 = a4 if a4 > v4 else v4; b4 = u4 if u4 < b4 else b4
+                        u5 = a5 if a5 > v5 else v5; b5 = u5 if u5 < b5 else b5
+                        u6 = a6 if a6 > v6 else v6; b6 = u6 if u6 < b6 else b6
+                        u7 = a7 if a7 > v7 else v7; b7 = u7 if u7 < b7 else b7
+                        a0 = v0 if v0 < a0 else a0
+                        a1 = v1 if v1 < a1 else a1
+                        a2x = v2 if v2 < a2x else a2x
+                        a3 = v3 if v3 < a3 else a3
+                        a4 = v4 if v4 < a4 else a4
+                        a5 = v5 if v5 < a5 else a5
+                        a6 = v6 if v6 < a6 else a6
+                        a7 = v7 if v7 < a7 else a7
+                    st[0] = a0
+                    st[1] = a1
+                    st[2] = a2x
+                    st[3] = a3
+                    st[4] = a4
+                    st[5] = a5
+                    st[6] = a6
+                    st[7] = a7
+                    st[8] = b0
+                    st[9] = b1
+                    st[10] = b2x
+                    st[11] = b3
+                    st[12] = b4
+                    st[13] = b5
+                    st[14] = b6
+                    st[15] = b7
+                    st[16] = c0
+                    st[17] = c1
+                    st[18] = c2x
+                    st[19] = c3
+                    st[20] = c4
+                    st[21] = c5
+                    st[22] = c6
+                    st[23] = c7
         for d in range(1, s + 1):
             i = j - d
             if i < 0:
                 break
             if not mask[j, d - 1]:
                 continue
-            _base_row(zz, PI[i - t0], PJ[rj], base)
             for e in range(ne):
-                row = PK[rj + 1 + e]
-                a0 = a1 = a2x = a3 = a4 = a5 = a6 = a7 = INF
-                b0 = b1 = b2x = b3 = b4 = b5 = b6 = b7 = INF
-                c0 = c1 = c2x = c3 = c4 = c5 = c6 = c7 = INF
-                for r in range(0, Rp, 8):
-                    bb = base[r:r + 8]
-                    rr = row[r:r + 8]
-                    v0 = bb[0] - 2.0 * rr[0]
-                    v1 = bb[1] - 2.0 * rr[1]
-                    v2 = bb[2] - 2.0 * rr[2]
-                    v3 = bb[3] - 2.0 * rr[3]
-                    v4 = bb[4] - 2.0 * rr[4]
-                    v5 = bb[5] - 2.0 * rr[5]
-                    v6 = bb[6] - 2.0 * rr[6]
-                    v7 = bb[7] - 2.0 * rr[7]
-                    # sorted insertion network: c = min(c, max(b, v)); b = min(b, max(a, v)); a = min(a, v)
-                    t0_ = b0 if b0 > v0 else v0; c0 = t0_ if t0_ < c0 else c0
-                    t1_ = b1 if b1 > v1 else v1; c1 = t1_ if t1_ < c1 else c1
-                    t2_ = b2x if b2x > v2 else v2; c2x = t2_ if t2_ < c2x else c2x
-                    t3_ = b3 if b3 > v3 else v3; c3 = t3_ if t3_ < c3 else c3
-                    t4_ = b4 if b4 > v4 else v4; c4 = t4_ if t4_ < c4 else c4
-                    t5_ = b5 if b5 > v5 else v5; c5 = t5_ if t5_ < c5 else c5
-                    t6_ = b6 if b6 > v6 else v6; c6 = t6_ if t6_ < c6 else c6
-                    t7_ = b7 if b7 > v7 else v7; c7 = t7_ if t7_ < c7 else c7
-                    u0 = a0 if a0 > v0 else v0; b0 = u0 if u0 < b0 else b0
-                    u1 = a1 if a1 > v1 else v1; b1 = u1 if u1 < b1 else b1
-                    u2 = a2x if a2x > v2 else v2; b2x = u2 if u2 < b2x else b2x
-                    u3 = a3 if a3 > v3 else v3; b3 = u3 if u3 < b3 else b3
-                    u4 = a4 if a4 > v4 else v4; b4 = u4 if u4 < b4 else b4
-                    u5 = a5 if a5 > v5 else v5; b5 = u5 if u5 < b5 else b5
-                    u6 = a6 if a6 > v6 else v6; b6 = u6 if u6 < b6 else b6
-                    u7 = a7 if a7 > v7 else v7; b7 = u7 if u7 < b7 else b7
-                    a0 = v0 if v0 < a0 else a0
-                    a1 = v1 if v1 < a1 else a1
-                    a2x = v2 if v2 < a2x else a2x
-                    a3 = v3 if v3 < a3 else a3
-                    a4 = v4 if v4 < a4 else a4
-                    a5 = v5 if v5 < a5 else a5
-                    a6 = v6 if v6 < a6 else a6
-                    a7 = v7 if v7 < a7 else a7
-                cand[0] = a0; cand[1] = a1; cand[2] = a2x; cand[3] = a3
-                cand[4] = a4; cand[5] = a5; cand[6] = a6; cand[7] = a7
-                cand[8] = b0; cand[9] = b1; cand[10] = b2x; cand[11] = b3
-                cand[12] = b4; cand[13] = b5; cand[14] = b6; cand[15] = b7
-                cand[16] = c0; cand[17] = c1; cand[18] = c2x; cand[19] = c3
-                cand[20] = c4; cand[21] = c5; cand[22] = c6; cand[23] = c7
+                st = state[d - 1, e]
                 m1 = m2 = m3 = INF
                 for q in range(24):
-                    v = cand[q]
+                    v = st[q]
                     if v < m3:
                         if v < m2:
                             m3 = m2
@@ -306,9 +361,11 @@ def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_st
     step = max(1, rows - 2 * s)
     zt = np.ascontiguousarray(zc.T)
     G = np.empty((rows, r))
-    PI = np.empty((rows, R))
-    PJ = np.empty((rows, R))
+    PI = np.zeros((rows, Rp))
+    PJ = np.zeros((rows, Rp))
     PK = np.zeros((rows, Rp))
+    zzp = np.full(Rp, INF)
+    zzp[:R] = zz
     j0 = 0
     while j0 < n:
         j1 = min(n, j0 + step)
@@ -317,7 +374,7 @@ def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_st
         with single_threaded_blas():
             np.matmul(xc[t0:t1], zt, out=G[:nt])
         _projections(G[:nt], st, a2, b2, c2, PI, PJ, PK)
-        kernel(PI, PJ, PK, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out)
+        kernel(PI, PJ, PK, zzp, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out)
         j0 = j1
     return out
 
