@@ -202,7 +202,7 @@ def test_drag_latency(browser, server, method, capsys, shots):
     pts = page.evaluate("window.__retime.solution.points")
     i = max(range(1, len(pts) - 1), key=lambda k: (not pts[k]["locked"], -abs(pts[k]["t"] - 0.6 * pts[-1]["t"])))
     page.evaluate("window.__retime.latencies = []")
-    deadline = time.monotonic() + 25
+    deadline = time.monotonic() + (12 if method == "physics" else 20)
     k = 0
     while time.monotonic() < deadline and len(page.evaluate("window.__retime.latencies")) < 30:
         x, y = point_center(page, i)  # (the optimizer may have moved it after the last release)
