@@ -120,3 +120,29 @@ def test_apply_matches_curve(jump):
     curve = guided_warp(jump, scale=0.6)
     out = apply_timing(jump, curve)
     assert out.n_frames == curve.n_frames(jump.fps)
+
+
+def test_upper_bound_and_pruned_exact_search_agree(jump):
+    """The exact search with heuristic bound and Lagrangian pruning finds the plain DP's optimum."""
+    from retime.guided import dp
+    from retime.guided.heuristic import solve_heuristic, solve_upper_bound
+    from retime.guided.problem import WarpProblem
+    from retime.guided.api import analysis_poses
+
+    x = analysis_poses(jump)
+    problem = WarpProblem(np.vstack([x, x[::-1], x]), np.vstack([x, x[::-1], x]), 30.0, 180, {}, 8, 3)
+    F = problem.scores()
+    exact = dp.solve_fixed(F, problem.m)
+    ub, _, _ = solve_upper_bound(problem, F)
+    heur, _, _ = solve_heuristic(problem, F)
+    assert exact.objective <= ub.objective <= heur.objective + 1e-9
+    pruned = dp.prune_band(F, problem.m, problem.band(), ub.objective)
+    assert pruned.n_states(8) < problem.band().n_states(8)
+    assert dp.solve_fixed(F, problem.m, band=pruned).objective == pytest.approx(exact.objective, rel=1e-12)
+
+
+def test_paper_features_without_root_height(jump):
+    from retime.guided import FeatureWeights
+
+    res = guided_solve(jump, scale=0.6, weights=FeatureWeights(root_height=0.0))
+    assert res.curve.duration == pytest.approx(guided_solve(jump, scale=0.6).curve.duration)

@@ -104,3 +104,20 @@ def test_lagrangian_pruning_keeps_the_optimum(seed):
             assert np.all(pruned.lo >= band.lo) and np.all(pruned.hi <= band.hi)
             sol = dp.solve_fixed(F, m, band=pruned)
             assert sol.objective == pytest.approx(exact.objective, rel=1e-12)
+
+
+def test_lagrange_path_is_optimal_for_its_own_length():
+    """A path that minimises cost + lam * steps is the cheapest of all paths with as many frames."""
+    rng = np.random.default_rng(21)
+    for _ in range(10):
+        n, s = int(rng.integers(6, 12)), int(rng.integers(2, 5))
+        F = random_table(rng, n, s)
+        m = int(rng.integers(-(-(n - 1) // s) + 1, n + 1))
+        path = dp.lagrange_path(F, m)
+        check_warp(path, n, len(path), s)
+        best, _ = dp.brute_force(F, len(path))
+        assert dp.path_cost(F, path) == pytest.approx(best, rel=1e-12, abs=1e-12)
+        # and the dual value never exceeds the optimum with exactly m frames
+        opt, _ = dp.brute_force(F, m)
+        for value, _lam in dp.lagrange_multipliers(F, m)[:5]:
+            assert value <= opt + 1e-9

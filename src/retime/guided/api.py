@@ -63,12 +63,20 @@ class GuidedResult:
     stats: SolveStats = field(default_factory=SolveStats)
 
 
-def root_frame_poses(motion: Motion) -> np.ndarray:
-    """(F, J, 3) joint positions in the root's coordinate frame, in metres."""
+def root_frame_poses(motion: Motion, root_height: float = 0.0) -> np.ndarray:
+    """(F, J, 3) joint positions in the root's coordinate frame, in metres.
+
+    With ``root_height`` > 0 one more row (F, J+1, 3) holds the root's world height (y, m) times
+    that weight in its y slot (x and z zero).
+    """
     pos, ori = forward_kinematics(motion)
     root = int(np.nonzero(motion.skeleton.parents < 0)[0][0])
-    rel = positions_in_root_frame(pos, pos[:, root], ori[:, root])
-    return rel * float(motion.skeleton.meters_per_unit)
+    rel = positions_in_root_frame(pos, pos[:, root], ori[:, root]) * float(motion.skeleton.meters_per_unit)
+    if root_height > 0:
+        h = np.zeros((rel.shape[0], 1, 3))
+        h[:, 0, 1] = pos[:, root, 1] * float(motion.skeleton.meters_per_unit) * root_height
+        rel = np.concatenate([rel, h], axis=1)
+    return rel
 
 
 def _check_reference(motion: Motion, reference: Motion):
@@ -79,12 +87,14 @@ def _check_reference(motion: Motion, reference: Motion):
                           "(missing on one side or with another parent); guided warping needs the same skeleton")
 
 
-def _pose_pair(motion, reference):
+def _pose_pair(motion, reference, root_height=0.0):
     """Flattened poses of input and reference with the columns constant in both dropped."""
-    a = root_frame_poses(motion)
-    b = a if reference is motion else root_frame_poses(reference)
+    a = root_frame_poses(motion, root_height)
+    b = a if reference is motion else root_frame_poses(reference, root_height)
     if reference is not motion:
         order = [reference.skeleton.index(nm) for nm in motion.skeleton.names]
+        if root_height > 0:
+            order.append(len(order))
         b = b[:, order]
     x = a.reshape(a.shape[0], -1)
     z = b.reshape(b.shape[0], -1)
@@ -104,9 +114,10 @@ def _sample(poses, fps, times):
     return spline(np.clip(times, 0.0, (F - 1) / fps))
 
 
-def analysis_poses(motion: Motion, fps: float = 30.0, prefilter: float = 0.1, times=None) -> np.ndarray:
+def analysis_poses(motion: Motion, fps: float = 30.0, prefilter: float = 0.1, times=None,
+                   root_height: float = 1.0) -> np.ndarray:
     """(frames, D) low-passed root-frame joint positions (m) at ``fps`` (or at ``times`` seconds)."""
-    x = root_frame_poses(motion)
+    x = root_frame_poses(motion, root_height)
     x = x.reshape(x.shape[0], -1)
     x = lowpass(x, max(1, int(round(prefilter * motion.fps))))
     if times is None:
@@ -237,7 +248,7 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
             raise err
 
     # --- poses on the grid and at the analysis rate
-    x_src, z_src = _pose_pair(motion, reference)
+    x_src, z_src = _pose_pair(motion, reference, weights.root_height)
     x_src = lowpass(x_src, max(1, int(round(prefilter * motion.fps))))
     z_src = lowpass(z_src, max(1, int(round(prefilter * reference.fps))))
     grid, fixed = [], {}

@@ -19,6 +19,14 @@ blocks are lengths in metres. The defaults (1, 0.1 s, 0.01 s^2) count a
 velocity error of 1 m/s like a pose error of 10 cm and an acceleration error
 of 10 m/s^2 (about g) like a pose error of 10 cm.
 
+``root_height`` adds one coordinate to the pose: the root's height above the
+floor (world y), times that weight. The torso-frame positions of the paper
+cannot see the body's own ballistic arc (a tucked pose held through the air
+barely changes in the torso frame), so without it a warp may skip through the
+middle of a flight; the height is invariant to where the character stands and
+which way it faces, as the rest of the feature is. ``root_height=0`` gives the
+paper's features exactly.
+
 Because ``y`` is linear in ``x_i, x_j, x_k``, every distance between a triple
 feature and a reference feature can be assembled from dot products of single
 frames (see :mod:`retime.guided.score`); nothing here ever has to build the
@@ -43,14 +51,17 @@ class FeatureWeights:
     ``pose``: weight of joint positions (dimensionless).
     ``velocity``: seconds; multiplies velocities in m/s.
     ``acceleration``: seconds squared; multiplies accelerations in m/s^2.
+    ``root_height``: weight of the root's height as an extra pose coordinate (0: the paper's
+    torso-frame positions only).
     """
 
     pose: float = 1.0
     velocity: float = 0.1
     acceleration: float = 0.01
+    root_height: float = 1.0
 
     def __post_init__(self):
-        for name in ("pose", "velocity", "acceleration"):
+        for name in ("pose", "velocity", "acceleration", "root_height"):
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
                 raise RetimeError(f"feature weight {name}={v!r} must be a finite number >= 0")
