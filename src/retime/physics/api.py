@@ -56,6 +56,7 @@ class PhysicsResult:
     objective: BakedObjective
     info: SolveInfo
     timings: dict = field(default_factory=dict)
+    terms: object = None  # the DynamicsTerms (body, torque limits, ...)
 
 
 def _changed(gravity, mass_factors, friction, torque_scale):
@@ -170,4 +171,4 @@ def physics_warp(motion, duration=None, scale=None, gravity=STANDARD_GRAVITY, ma
     report = build_report(spline, pd, regions, fps, info=info,
                           extra={"objective_kind": objective, "gravity": [float(x) for x in np.asarray(gravity)],
                                  "mass_factors": dict(mass_factors or {}), "timings": {k: round(v, 4) for k, v in timings.items()}})
-    return PhysicsResult(curve, report, spline, session, pd, regions, obj, info, timings)
+    return PhysicsResult(curve, report, spline, session, pd, regions, obj, info, timings, terms)

@@ -152,23 +152,40 @@ def polygon_area(P) -> float:
 
 def closest_point(P, point):
     """Closest point of the convex polygon P (CCW, possibly degenerate) to ``point``; (q, distance)."""
-    P = np.asarray(P, dtype=float)
-    p = np.asarray(point, dtype=float)
+    P = np.ascontiguousarray(P, dtype=float).reshape(-1, 2)
     if len(P) == 0:
         raise RetimeError("empty polygon")
-    if len(P) >= 3 and _inside(P, p):
-        return p.copy(), 0.0
-    best, bd = P[0].copy(), float(np.hypot(*(P[0] - p)))
-    for k in range(len(P)):
-        a, b = P[k], P[(k + 1) % len(P)]
-        e = b - a
-        ee = float(e @ e)
-        t = 0.0 if ee <= 0 else min(1.0, max(0.0, float((p - a) @ e) / ee))
-        q = a + t * e
-        d = float(np.hypot(*(q - p)))
+    qx, qy, d = _closest_kernel(P, float(point[0]), float(point[1]))
+    return np.array([qx, qy]), d
+
+
+@njit(cache=True)
+def _closest_kernel(P, x, y):
+    n = P.shape[0]
+    if n >= 3:
+        inside = True
+        for k in range(n):
+            ax, ay = P[k, 0], P[k, 1]
+            bx, by = P[(k + 1) % n, 0], P[(k + 1) % n, 1]
+            if (bx - ax) * (y - ay) - (by - ay) * (x - ax) < 0.0:
+                inside = False
+                break
+        if inside:
+            return x, y, 0.0
+    qx, qy = P[0, 0], P[0, 1]
+    bd = math.hypot(qx - x, qy - y)
+    for k in range(n):
+        ax, ay = P[k, 0], P[k, 1]
+        ex, ey = P[(k + 1) % n, 0] - ax, P[(k + 1) % n, 1] - ay
+        ee = ex * ex + ey * ey
+        t = 0.0
+        if ee > 0.0:
+            t = min(1.0, max(0.0, ((x - ax) * ex + (y - ay) * ey) / ee))
+        cx, cy = ax + t * ex, ay + t * ey
+        d = math.hypot(cx - x, cy - y)
         if d < bd:
-            best, bd = q, d
-    return best, bd
+            qx, qy, bd = cx, cy, d
+    return qx, qy, bd
 
 
 def polygon_distance(P, point) -> float:
@@ -237,28 +254,36 @@ def _dedupe(P, L, eps):
     """Drop consecutive (cyclic) duplicate vertices and collinear middle points."""
     if len(P) == 0:
         return P, L
-    keep = []
-    for i in range(len(P)):
-        if not keep or np.hypot(*(P[i] - P[keep[-1]])) > eps:
-            keep.append(i)
-    while len(keep) > 1 and np.hypot(*(P[keep[-1]] - P[keep[0]])) <= eps:
-        keep.pop()
-    P, L = P[keep], L[keep]
-    if len(P) >= 3:
-        changed = True
-        while changed and len(P) >= 3:
-            changed = False
-            n = len(P)
-            for i in range(n):
-                a, b, c = P[i - 1], P[i], P[(i + 1) % n]
-                ab, ac = b - a, c - a
-                cr = ab[0] * ac[1] - ab[1] * ac[0]
-                if abs(cr) <= eps * max(np.hypot(*ac), 1e-300):
-                    P = np.delete(P, i, axis=0)
-                    L = np.delete(L, i, axis=0)
-                    changed = True
-                    break
-    return P, L
+    keep = _dedupe_kernel(np.ascontiguousarray(P, dtype=float), eps)
+    return P[keep], L[keep]
+
+
+@njit(cache=True)
+def _dedupe_kernel(P, eps):
+    n = P.shape[0]
+    keep = np.empty(n, dtype=np.int64)
+    m = 0
+    for i in range(n):
+        if m == 0 or math.hypot(P[i, 0] - P[keep[m - 1], 0], P[i, 1] - P[keep[m - 1], 1]) > eps:
+            keep[m] = i
+            m += 1
+    while m > 1 and math.hypot(P[keep[m - 1], 0] - P[keep[0], 0], P[keep[m - 1], 1] - P[keep[0], 1]) <= eps:
+        m -= 1
+    changed = True
+    while changed and m >= 3:
+        changed = False
+        for i in range(m):
+            ia, ib, ic = keep[(i - 1) % m], keep[i], keep[(i + 1) % m]
+            abx, aby = P[ib, 0] - P[ia, 0], P[ib, 1] - P[ia, 1]
+            acx, acy = P[ic, 0] - P[ia, 0], P[ic, 1] - P[ia, 1]
+            cr = abx * acy - aby * acx
+            if abs(cr) <= eps * max(math.hypot(acx, acy), 1e-300):
+                for j in range(i, m - 1):
+                    keep[j] = keep[j + 1]
+                m -= 1
+                changed = True
+                break
+    return keep[:m].copy()
 
 
 # ------------------------------------------------------------------------------------------------
@@ -454,6 +479,18 @@ def _walk(A, zl, zu, basic, atupper, theta0, max_iter):
 # HiGHS models
 # ------------------------------------------------------------------------------------------------
 
+_POOL = {}
+
+
+def _pooled_highs(kind):
+    """One HiGHS object per kind and process, reused frame after frame (passModel replaces the
+    model; the last basis is offered to the next frame of the same shape as a warm start)."""
+    h = _POOL.get(kind)
+    if h is None:
+        h = _POOL[kind] = _new_highs()
+    return h
+
+
 def _new_highs():
     from highspy import _core
 
@@ -468,7 +505,6 @@ def _new_highs():
 
 def _highs_lp(A, col_lo, col_hi, row_lo, row_hi, cost=None):
     import highspy
-    from scipy.sparse import csc_matrix
 
     m, n = A.shape
     lp = highspy.HighsLp()
@@ -479,11 +515,12 @@ def _highs_lp(A, col_lo, col_hi, row_lo, row_hi, cost=None):
     lp.col_upper_ = np.where(col_hi >= _INF * 0.5, highspy.kHighsInf, col_hi)
     lp.row_lower_ = np.where(row_lo <= -_INF * 0.5, -highspy.kHighsInf, row_lo)
     lp.row_upper_ = np.where(row_hi >= _INF * 0.5, highspy.kHighsInf, row_hi)
-    Ac = csc_matrix(A)
+    At = np.asarray(A, dtype=float).T
+    nz = At != 0.0
     lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-    lp.a_matrix_.start_ = Ac.indptr.astype(np.int32)
-    lp.a_matrix_.index_ = Ac.indices.astype(np.int32)
-    lp.a_matrix_.value_ = Ac.data
+    lp.a_matrix_.start_ = np.concatenate(([0], np.cumsum(nz.sum(axis=1)))).astype(np.int32)
+    lp.a_matrix_.index_ = np.nonzero(nz)[1].astype(np.int32)
+    lp.a_matrix_.value_ = At[nz]
     lp.a_matrix_.num_col_ = n
     lp.a_matrix_.num_row_ = m
     return lp
@@ -499,23 +536,44 @@ class FrameLP:
         self.A = np.ascontiguousarray(A, dtype=float)
         m, n = A.shape
         self.m, self.n = m, n
-        self.col_lo = np.r_[-u_max, 0.0, np.zeros(n - 2)]
-        self.col_hi = np.r_[u_max, v_max, np.full(n - 2, _INF)]
+        self.col_lo = np.zeros(n)
+        self.col_lo[0] = -u_max
+        self.col_hi = np.full(n, _INF)
+        self.col_hi[0], self.col_hi[1] = u_max, v_max
         self.row_lo = np.asarray(row_lo, dtype=float)
         self.row_hi = np.asarray(row_hi, dtype=float)
-        self.h = _new_highs()
+        self.h = _pooled_highs("frame")
         self.h.passModel(_highs_lp(self.A, self.col_lo, self.col_hi, self.row_lo, self.row_hi))
+        prev = _POOL.get(("basis", m, n))
+        if prev is not None:
+            self.h.setBasis(prev)
         self.n_solves = 0
         self._idx2 = np.array([0, 1], dtype=np.int32)
         self._kOptimal = highspy.HighsModelStatus.kOptimal
 
+    def _run(self):
+        """Solve; on numerical trouble (status neither optimal nor infeasible) retry from scratch with
+        the dual simplex, which HiGHS finds more robust on badly scaled rows."""
+        import highspy
+
+        self.h.run()
+        self.n_solves += 1
+        st = self.h.getModelStatus()
+        if st in (self._kOptimal, highspy.HighsModelStatus.kInfeasible):
+            return st == self._kOptimal
+        self.h.setOptionValue("simplex_strategy", 1)
+        self.h.clearSolver()
+        self.h.run()
+        self.n_solves += 1
+        self.h.setOptionValue("simplex_strategy", 4)
+        return self.h.getModelStatus() == self._kOptimal
+
     def maximize(self, du, dv):
         """Maximize du*u + dv*v; returns x (n,) or None if infeasible."""
         self.h.changeColsCost(2, self._idx2, np.array([-du, -dv]))
-        self.h.run()
-        self.n_solves += 1
-        if self.h.getModelStatus() != self._kOptimal:
+        if not self._run():
             return None
+        _POOL[("basis", self.m, self.n)] = self.h.getBasis()
         return np.asarray(self.h.getSolution().col_value)
 
     def basis(self):
@@ -523,12 +581,9 @@ class FrameLP:
         import highspy
 
         b = self.h.getBasis()
-        cs = [int(s) for s in b.col_status]
-        rs = [int(s) for s in b.row_status]
-        BASIC, UPPER = int(highspy.HighsBasisStatus.kBasic), int(highspy.HighsBasisStatus.kUpper)
-        st = cs + rs
-        basic = np.array([j for j, s in enumerate(st) if s == BASIC], dtype=np.int64)
-        up = np.array([s == UPPER for s in st], dtype=np.bool_)
+        st = np.array([x.value for x in b.col_status] + [x.value for x in b.row_status], dtype=np.int64)
+        basic = np.flatnonzero(st == highspy.HighsBasisStatus.kBasic.value)
+        up = st == highspy.HighsBasisStatus.kUpper.value
         return basic, up
 
     def solve_at(self, u, v, cost_lam):
@@ -536,10 +591,10 @@ class FrameLP:
         h = self.h
         n = self.n
         h.changeColsBounds(2, self._idx2, np.array([u, v]), np.array([u, v]))
-        h.changeColsCost(n, np.arange(n, dtype=np.int32), np.r_[0.0, 0.0, cost_lam])
-        h.run()
-        self.n_solves += 1
-        ok = h.getModelStatus() == self._kOptimal
+        cost = np.zeros(n)
+        cost[2:] = cost_lam
+        h.changeColsCost(n, np.arange(n, dtype=np.int32), cost)
+        ok = self._run()
         x = np.asarray(h.getSolution().col_value) if ok else None
         h.changeColsBounds(2, self._idx2, self.col_lo[:2], self.col_hi[:2])
         h.changeColsCost(n, np.arange(n, dtype=np.int32), np.zeros(n))
@@ -638,14 +693,18 @@ def _split(a, b, lo, hi, rho, rows):
     Returns (coefficient of u, of v, lower, upper, source row) per LP row: a row without budget
     stays ranged; a row with budget rho > 0 becomes an upper row with v-coefficient b - rho and a
     lower row with b + rho."""
-    rows = np.asarray(rows, dtype=int)
-    r0 = rows[rho[rows] <= 0]
-    r1 = rows[rho[rows] > 0]
-    cu = np.r_[a[r0], a[r1], a[r1]]
-    cv = np.r_[b[r0], b[r1] - rho[r1], b[r1] + rho[r1]]
-    lo_ = np.r_[lo[r0], np.full(len(r1), -_INF), lo[r1]]
-    hi_ = np.r_[hi[r0], hi[r1], np.full(len(r1), _INF)]
-    src = np.r_[r0, r1, r1]
+    rows = np.asarray(rows, dtype=np.int64)
+    has = rho[rows] > 0
+    if not has.any():
+        return a[rows], b[rows], lo[rows], hi[rows], rows
+    r0 = rows[~has]
+    r1 = rows[has]
+    cat = np.concatenate
+    cu = cat((a[r0], a[r1], a[r1]))
+    cv = cat((b[r0], b[r1] - rho[r1], b[r1] + rho[r1]))
+    lo_ = cat((lo[r0], np.full(len(r1), -_INF), lo[r1]))
+    hi_ = cat((hi[r0], hi[r1], np.full(len(r1), _INF)))
+    src = cat((r0, r1, r1))
     return cu, cv, lo_, hi_, src
 
 
@@ -654,17 +713,19 @@ def _halfplanes(a, b, c, lo, hi, rho, rows):
     cu, cv, lo_, hi_, src = _split(a, b, lo, hi, rho, rows)
     lo2 = lo_ - c[src]
     hi2 = hi_ - c[src]
-    out = []
     nrm = np.hypot(cu, cv)
-    for k in range(len(cu)):
-        if nrm[k] > 1e-12 * (1.0 + min(abs(lo2[k]), abs(hi2[k]))):
-            if hi2[k] < _INF * 0.5:
-                out.append((cu[k] / nrm[k], cv[k] / nrm[k], hi2[k] / nrm[k]))
-            if lo2[k] > -_INF * 0.5:
-                out.append((-cu[k] / nrm[k], -cv[k] / nrm[k], -lo2[k] / nrm[k]))
-        else:  # a row the timing cannot change: feasible iff lo <= 0 <= hi
-            out.append((0.0, 0.0, min(hi2[k], -lo2[k])))
-    return np.array(out, dtype=float).reshape(-1, 3)
+    live = nrm > 1e-12 * (1.0 + np.minimum(np.abs(lo2), np.abs(hi2)))
+    safe = np.where(live, nrm, 1.0)
+    up = live & (hi2 < _INF * 0.5)
+    dn = live & (lo2 > -_INF * 0.5)
+    dead = ~live
+    H = np.concatenate((
+        np.stack((cu[up] / safe[up], cv[up] / safe[up], hi2[up] / safe[up]), axis=1),
+        np.stack((-cu[dn] / safe[dn], -cv[dn] / safe[dn], -lo2[dn] / safe[dn]), axis=1),
+        # a row the timing cannot change: feasible iff lo <= 0 <= hi
+        np.stack((np.zeros(dead.sum()), np.zeros(dead.sum()), np.minimum(hi2[dead], -lo2[dead])), axis=1),
+    ))
+    return np.ascontiguousarray(H)
 
 
 def _residual_lp(a, b, c, N, lo, hi, rho, act, n_root, body_weight, opts, fix=None):
@@ -681,14 +742,15 @@ def _residual_lp(a, b, c, N, lo, hi, rho, act, n_root, body_weight, opts, fix=No
     S[np.arange(m), src] = 1.0
     # columns: u, v, lam (K), s+ (nv), s- (nv); row value + s+ - s- within its bounds
     A = np.hstack([cu[:, None], cv[:, None], -N[np.ix_(src, act)], S, -S])
+    col_lo = np.zeros(2 + K + 2 * nv)
+    col_hi = np.full(2 + K + 2 * nv, _INF)
     if fix is None:
-        col_lo = np.r_[-opts.u_max, 0.0, np.zeros(K + 2 * nv)]
-        col_hi = np.r_[opts.u_max, opts.v_max, np.full(K + 2 * nv, _INF)]
+        col_lo[0], col_hi[0], col_hi[1] = -opts.u_max, opts.u_max, opts.v_max
     else:
-        col_lo = np.r_[fix[0], fix[1], np.zeros(K + 2 * nv)]
-        col_hi = np.r_[fix[0], fix[1], np.full(K + 2 * nv, _INF)]
-    cost = np.r_[0.0, 0.0, np.zeros(K), cost_row, cost_row]
-    h = _new_highs()
+        col_lo[0], col_lo[1] = fix
+        col_hi[0], col_hi[1] = fix
+    cost = np.concatenate((np.zeros(2 + K), cost_row, cost_row))
+    h = _pooled_highs("residual")
     h.setOptionValue("simplex_strategy", 1)
     h.passModel(_highs_lp(A, col_lo, col_hi, lo_ - c[src], hi_ - c[src], cost))
     h.run()
@@ -697,6 +759,7 @@ def _residual_lp(a, b, c, N, lo, hi, rho, act, n_root, body_weight, opts, fix=No
     x = np.asarray(h.getSolution().col_value)
     r = np.abs(x[2 + K: 2 + K + nv] - x[2 + K + nv:])
     r[r <= 1e-9 * _row_weights(n_root, nv, body_weight, opts)] = 0.0
+    _residual_lp.last_point = (float(x[0]), float(x[1]))
     return r, float(np.sum(r * cost_row))
 
 
@@ -741,12 +804,13 @@ def _point_ok(a, b, c, lo, hi, rows, u, v, tol):
     return bool(np.all(val >= lo[rows] - tol) and np.all(val <= hi[rows] + tol))
 
 
-def source_fit(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_root: int):
+def source_fit(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_root: int, keep_lp=False):
     """How far the original timing (0, 1) is from feasible at one frame (original physics).
 
     Returns (budget (nv,) = |row residual| the captured motion needs at (0, 1), that residual in
     body-weight units, lam0 (K,) least-force contact coefficients at (0, 1) once the rows are
-    widened by the budget and the pad, number of LP solves)."""
+    widened by the budget and the pad, number of LP solves) and, with ``keep_lp``, the frame LP when
+    it can serve for the region as it is (zero budget)."""
     from .forces import force_weights, solve_center
 
     nv, Kall = N.shape
@@ -761,24 +825,27 @@ def source_fit(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_ro
         val = b + c
         r = np.abs(val - np.clip(val, lo, hi))
         r[r <= tol] = 0.0
-        return r, float(np.sum(r * _row_costs(n_root, nv, body_weight, opts))), lam0, 0
-    fw = force_weights(N[:, act], n_root)
+        out = (r, float(np.sum(r * _row_costs(n_root, nv, body_weight, opts))), lam0, 0)
+        return out + (None,) if keep_lp else out
+    fw = force_weights(N[:3][:, act] if n_root >= 3 else N[:, act], n_root)
     if _point_ok(a, b, c, lo, hi, other, 0.0, 1.0, tol):
         lp = _frame_lp(a, b, c, N, lo, hi, zero, act, rows, opts)
         lam = solve_center(lp, 0.0, 1.0, fw)
-        n_lp += 1
+        n_lp += lp.n_solves
         if lam is not None:
             lam0[act] = np.maximum(lam, 0.0)
-            return zero, 0.0, lam0, n_lp
+            out = (zero, 0.0, lam0, n_lp)
+            return out + (lp,) if keep_lp else out
     budget, res = _residual_lp(a, b, c, N, lo, hi, zero, act, n_root, body_weight, opts, fix=(0.0, 1.0))
     n_lp += 1
     lo1, hi1 = _widen(lo, hi, budget, opts.relax_pad * w)
     lp = _frame_lp(a, b, c, N, lo1, hi1, zero, act, rows, opts)
     lam = solve_center(lp, 0.0, 1.0, fw)
-    n_lp += 1
+    n_lp += lp.n_solves
     if lam is not None:
         lam0[act] = np.maximum(lam, 0.0)
-    return budget, res, lam0, n_lp
+    out = (budget, res, lam0, n_lp)
+    return out + (None,) if keep_lp else out
 
 
 def _trace(lp, opts, x0):
@@ -787,8 +854,8 @@ def _trace(lp, opts, x0):
     piv = 0
     if opts.method == "parametric":
         basic, up = lp.basis()
-        zl = np.r_[lp.col_lo, lp.row_lo]
-        zu = np.r_[lp.col_hi, lp.row_hi]
+        zl = np.concatenate((lp.col_lo, lp.row_lo))
+        zu = np.concatenate((lp.col_hi, lp.row_hi))
         if len(basic) == lp.m:
             V, Xw, status, piv = _walk(lp.A, zl, zu, basic, up, 0.5 * math.pi, 2000)
             if status == 0 and len(Xw) >= 1:
@@ -798,16 +865,18 @@ def _trace(lp, opts, x0):
     return X, piv
 
 
-def _polygon(a, b, c, N, lo, hi, rho, act, rows, other, opts, Kall, eps):
+def _polygon(a, b, c, N, lo, hi, rho, act, rows, other, opts, Kall, eps, lp=None):
     """Clipped polygon, its lambdas, the LP (None in flight), LP solves, pivots; P is None if empty."""
     H = _halfplanes(a, b, c, lo, hi, rho, other)
-    lp = None
     n_lp = 0
     piv = 0
     if len(act) == 0:
+        lp = None
         P, L = _box_polygon(opts, Kall)
     else:
-        lp = _frame_lp(a, b, c, N, lo, hi, rho, act, rows, opts)
+        if lp is None:
+            lp = _frame_lp(a, b, c, N, lo, hi, rho, act, rows, opts)
+        before = lp.n_solves
         x0 = lp.maximize(0.0, 1.0)
         P = L = None
         if x0 is not None:
@@ -816,7 +885,7 @@ def _polygon(a, b, c, N, lo, hi, rho, act, rows, other, opts, Kall, eps):
                 P = X[:, :2].copy()
                 L = np.zeros((len(X), Kall))
                 L[:, act] = np.maximum(X[:, 2:], 0.0)
-        n_lp += lp.n_solves
+        n_lp += lp.n_solves - before
         if P is None:
             return None, None, lp, n_lp, piv
     px, py, pl, ok = _clip_halfplanes(P[:, 0].copy(), P[:, 1].copy(), L, H, eps)
@@ -849,8 +918,9 @@ def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_
     pad = opts.relax_pad * w
     eps = 1e-9 * (opts.u_max + opts.v_max)
     n_lp = 0
+    lp0 = None
     if budget is None:
-        budget, src_res, lam0, k = source_fit(a, b, c, N, lo, hi, opts, body_weight, n_root)
+        budget, src_res, lam0, k, lp0 = source_fit(a, b, c, N, lo, hi, opts, body_weight, n_root, keep_lp=True)
         n_lp += k
     else:
         budget = np.asarray(budget, dtype=float)
@@ -860,7 +930,7 @@ def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_
         budget = np.zeros(nv)
     lo1 = lo - np.where(budget > 0, pad, 0.0)
     hi1 = hi + np.where(budget > 0, pad, 0.0)
-    P, L, lp, k, piv = _polygon(a, b, c, N, lo1, hi1, budget, act, rows, other, opts, Kall, eps)
+    P, L, lp, k, piv = _polygon(a, b, c, N, lo1, hi1, budget, act, rows, other, opts, Kall, eps, lp=lp0)
     n_lp += k
     level = 0.0
     relaxed = False
@@ -872,11 +942,13 @@ def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_
         lo1, hi1 = _widen(lo1, hi1, extra, pad)
         level = float(np.max(np.where(extra > 0, (extra + pad) / w, 0.0)))
         relaxed = True
+        point = _residual_lp.last_point
         P, L, lp, k, piv2 = _polygon(a, b, c, N, lo1, hi1, budget, act, rows, other, opts, Kall, eps)
         n_lp += k
         piv += piv2
-        if P is None:
-            raise RetimeError("internal: feasible region still empty after relaxation")
+        if P is None:  # numerical corner: fall back to the least-residual timing itself
+            P = np.array([point])
+            L = np.zeros((1, Kall))
     # fan centre (sec. 3.4): the original timing, or the nearest feasible point pulled inwards
     target = np.asarray(opts.center, dtype=float)
     q, dist = closest_point(P, target)
@@ -884,8 +956,10 @@ def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_
     if dist > 0 and len(P) >= 3:
         center = q + 0.02 * (P.mean(axis=0) - q)
     clam = np.zeros(Kall)
-    if lp is not None:
-        lam_c = solve_center(lp, center[0], center[1], force_weights(N[:, act], n_root))
+    if lp is not None and lp is lp0 and dist == 0.0 and not relaxed and np.any(lam0 != 0):
+        clam = lam0.copy()  # the centre is the original timing: its least-force LP was solved already
+    elif lp is not None:
+        lam_c = solve_center(lp, center[0], center[1], force_weights(N[:3][:, act] if n_root >= 3 else N[:, act], n_root))
         n_lp += 1
         if lam_c is None:  # the centre sits on a clipped edge within round-off: nearest vertex
             lam_c = _interp_on_polygon(P, L, center)[act]

@@ -1,0 +1,116 @@
+"""``retime physics``: physics-based retiming (McCann, Pollard, Srinivasa 2006)."""
+from __future__ import annotations
+
+import argparse
+
+from ..errors import RetimeError
+from ..io_util import check_not_input
+from ..warp import apply_timing
+from .common import add_duration_args, add_motion_args, add_output_args, check_output, load_input, positive_float, \
+    target_duration, write_outputs
+
+EPILOG = """examples:
+  retime physics 16_06.amc -o half.bvh --scale 0.5 --report half.json
+      half the duration; the flight keeps its natural speed
+  retime physics 16_03.amc -o moon.bvh --gravity-scale 0.25 --warp moon.csv
+      a quarter of the gravity, free duration: the flight plays at about half speed
+  retime physics 16_16.amc -o side.bvh --gravity -9.81,0,0 --duration 4.25
+  retime physics 16_16.amc -o heavy.bvh --mass lfemur=10 --write-body body.toml
+  retime physics 16_06.amc -o early.bvh --keytime 2.3=1.9 --duration 3.383
+
+Without --duration or --scale the duration is free: the optimizer chooses it."""
+
+
+def _vector3(text):
+    try:
+        v = [float(x) for x in text.split(",")]
+    except ValueError:
+        v = []
+    if len(v) != 3:
+        raise argparse.ArgumentTypeError(f"gravity must be X,Y,Z in m/s^2 (e.g. 0,-9.81,0), got {text!r}")
+    return tuple(v)
+
+
+def _mass(text):
+    name, sep, value = text.partition("=")
+    try:
+        f = float(value)
+    except ValueError:
+        f = -1.0
+    if not sep or not name or not (f > 0):
+        raise argparse.ArgumentTypeError(f"mass factor must look like SEGMENT=FACTOR with FACTOR > 0 (e.g. lfemur=10), got {text!r}")
+    return name, f
+
+
+def register(sub):
+    p = sub.add_parser(
+        "physics", help="physics-based retiming: keep the motion physically plausible (McCann et al. 2006)",
+        description="Retime a motion so that its new timing stays physically plausible for a body (feasible contact "
+                    "forces and joint torques), optionally under changed gravity or segment masses, matching the "
+                    "original's torques (match) or using the least effort (minimize).",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_motion_args(p)
+    add_output_args(p)
+    add_duration_args(p)
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--gravity", type=_vector3, metavar="X,Y,Z", help="gravity vector in m/s^2 (y is up; default 0,-9.81,0)")
+    g.add_argument("--gravity-scale", type=positive_float, metavar="G", help="gravity times G (0.25: a quarter of the gravity)")
+    p.add_argument("--mass", type=_mass, action="append", default=[], metavar="SEGMENT=FACTOR",
+                   help="multiply a segment's mass (skeleton joint name, e.g. lfemur=10); repeat for several")
+    p.add_argument("--objective", choices=("match", "minimize"), default="match",
+                   help="match the original's joint torques (default) or minimize them")
+    p.add_argument("--body", metavar="BODY.toml", help="body model (masses, inertias, soles, torque limits); default: "
+                   "anthropometric segments of 70 kg, limits from the motion")
+    p.add_argument("--write-body", metavar="BODY.toml", help="write the body model used (with the torque limits estimated "
+                   "from the motion) for editing")
+    p.add_argument("--contacts", metavar="CONTACTS.csv", help="foot contact states per frame (default: detected)")
+    p.add_argument("--friction", type=positive_float, metavar="MU", help="friction coefficient (default: the body's, 0.5)")
+    p.add_argument("--torque-scale", type=positive_float, default=1.0, metavar="X", help="scale all torque limits")
+    p.add_argument("--method", choices=("lbfgs", "gd", "slsqp"), default="lbfgs",
+                   help="optimizer: quasi-Newton L-BFGS-B (default), the paper's gradient descent, or SLSQP")
+    p.add_argument("--report", metavar="REPORT.json", help="per output frame: contact, feasibility, distance, torque norm")
+    p.add_argument("--quiet", action="store_true", help="no progress output")
+    p.set_defaults(func=run)
+
+
+def run(args):
+    from ..physics.api import physics_warp
+    from ..physics.report import flight_speeds, write_report
+
+    check_output(args)
+    for extra in (args.report, args.write_body):
+        if extra:
+            check_not_input(extra, args.motion, args.output, getattr(args, "asf", None), args.body, args.contacts)
+    m = load_input(args)
+    if m.n_frames < 4:
+        raise RetimeError(f"{args.motion}: physics needs at least 4 frames, the motion has {m.n_frames}")
+    gravity = (0.0, -9.81, 0.0)
+    if args.gravity is not None:
+        gravity = args.gravity
+    elif args.gravity_scale is not None:
+        gravity = (0.0, -9.81 * args.gravity_scale, 0.0)
+    masses = {}
+    for name, f in args.mass:
+        if name not in m.skeleton.names:
+            raise RetimeError(f"--mass {name}={f:g}: no segment named {name!r}; segments: {', '.join(m.skeleton.names)}")
+        masses[name] = masses.get(name, 1.0) * f
+    result = physics_warp(m, duration=target_duration(args, m), gravity=gravity, mass_factors=masses or None,
+                          objective=args.objective, keytimes=args.keytime, body=args.body, contacts=args.contacts,
+                          friction=args.friction, torque_scale=args.torque_scale, method=args.method,
+                          progress=not args.quiet)
+    write_outputs(args, m, result.curve, apply_timing(m, result.curve))
+    if args.report:
+        write_report(result.report, args.report)
+    if args.write_body:
+        from ..physics.body import write_body
+
+        terms = result.terms
+        write_body(terms.body, args.write_body, torque_limits=terms.joint_torque_limits(),
+                   note=f"torque limits estimated from {args.motion}")
+    if not args.quiet:
+        s = result.report["summary"]
+        fl = ", ".join(f"{x:.2f}" for x in flight_speeds(result.report)) or "none"
+        print(f"physics: {s['feasible_fraction'] * 100:.1f}% of output frames feasible; flight speed {fl}; "
+              f"mean speed {s['mean_speed']:.2f}" + (f"; report {args.report}" if args.report else "")
+              + (f"; body {args.write_body}" if args.write_body else ""))
+    return 0
