@@ -7,7 +7,7 @@ import sys
 
 from ..errors import RetimeError
 
-COMMANDS = ["info", "convert", "linear", "edit", "plot", "render", "apply", "demo", "guided"]
+COMMANDS = ["info", "convert", "linear", "edit", "plot", "render", "apply", "demo", "guided", "physics"]
 
 
 class _Parser(argparse.ArgumentParser):
