@@ -40,8 +40,21 @@ def require_browser():
         reason = "browser tests need " + " and ".join(missing)
         if os.environ.get("CI"):
             pytest.fail(reason + "; under CI .ci/run must install them")
-        pytest.skip(reason)
+        pytest.skip(reason, allow_module_level=True)
     return path
+
+
+def require(module, install):
+    """Import ``module``; skip the test if it is missing, or fail under CI (which installs it)."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        reason = f"needs {module} ({install})"
+        if os.environ.get("CI"):
+            pytest.fail(reason + "; under CI the editor's extras must be installed")
+        pytest.skip(reason, allow_module_level=True)
 
 
 def raw_request(url, request_line, headers=None, body=b"", timeout=10.0):

@@ -5,7 +5,6 @@ fails: .ci/run installs them). Screenshots go to $RETIME_EDITOR_SHOTS (default: 
 """
 from __future__ import annotations
 
-import io
 import os
 import statistics
 import time
@@ -14,8 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytest.importorskip("fastapi")
-pytest.importorskip("uvicorn")
+from _editor_support import require  # noqa: E402
+
+require("fastapi", "pip install 'retime[editor]'")
+require("uvicorn", "pip install 'retime[editor]'")
 
 from retime.data import bundled_path  # noqa: E402
 

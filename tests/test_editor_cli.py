@@ -12,9 +12,11 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("fastapi")
-pytest.importorskip("uvicorn")
-httpx = pytest.importorskip("httpx")
+from _editor_support import require  # noqa: E402
+
+require("fastapi", "pip install 'retime[editor]'")
+require("uvicorn", "pip install 'retime[editor]'")
+httpx = require("httpx", "pip install 'retime[test]'")
 
 from retime.data import bundled_path  # noqa: E402
 

@@ -3,16 +3,16 @@ from __future__ import annotations
 
 import asyncio
 import json
-import threading
 import time
 
 import numpy as np
 import pytest
 
-pytest.importorskip("fastapi")
-pytest.importorskip("uvicorn")
-httpx = pytest.importorskip("httpx")
-websockets_client = pytest.importorskip("websockets.asyncio.client")
+from _editor_support import raw_request, require  # noqa: E402
+
+require("fastapi", "pip install 'retime[editor]'")
+require("uvicorn", "pip install 'retime[editor]'")
+httpx = require("httpx", "pip install 'retime[test]'")
 
 from retime.data import bundled_path  # noqa: E402
 from retime.editor import methods as methods_mod  # noqa: E402
@@ -20,7 +20,6 @@ from retime.editor.server import MAX_BODY, BackgroundServer, create_app, load_cl
 from retime.motion import load_motion  # noqa: E402
 from retime.warp import TimingCurve, keytime_warp  # noqa: E402
 
-from _editor_support import raw_request  # noqa: E402
 
 CLIP = "16_06.amc"
 
@@ -344,6 +343,11 @@ async def _ws_collect(ws, until_seq, timeout=10.0):
             return out
 
 
+def _ws():
+    """The websockets client (the server side needs the package too: uvicorn speaks websocket through it)."""
+    return require("websockets.asyncio.client", "pip install websockets")
+
+
 def _ws_url(url, sid):
     return url.replace("http://", "ws://") + f"/api/session/{sid}/live"
 
@@ -355,7 +359,7 @@ def test_live_loop_streams_and_newer_edit_cancels_older(served, client):
     SlowMethod.cancelled_runs = SlowMethod.finished_runs = 0
 
     async def go():
-        async with websockets_client.connect(_ws_url(url, sid)) as ws:
+        async with _ws().connect(_ws_url(url, sid)) as ws:
             await ws.send(json.dumps({"seq": 1, "ops": [{"op": "move", "index": 1, "t": 1.0, "s": 0.5}]}))
             await asyncio.sleep(0.12)  # the first solve is under way
             await ws.send(json.dumps({"seq": 2, "ops": [{"op": "move", "index": 1, "t": 1.0, "s": 0.3}]}))
@@ -374,7 +378,7 @@ def test_live_loop_errors_and_oversized_messages(served, client):
     sid = new_session(client)["session"]
 
     async def go():
-        async with websockets_client.connect(_ws_url(url, sid)) as ws:
+        async with _ws().connect(_ws_url(url, sid)) as ws:
             await ws.send("not json")
             m1 = json.loads(await ws.recv())
             await ws.send(json.dumps({"seq": 5, "ops": [{"op": "remove", "index": 0}]}))
@@ -382,19 +386,19 @@ def test_live_loop_errors_and_oversized_messages(served, client):
             await ws.send(json.dumps({"seq": 6, "ops": [{"op": "add", "t": 1.0, "s": 1.0}]}))
             m3 = await _ws_collect(ws, 6)
         closed = None
-        async with websockets_client.connect(_ws_url(url, sid), max_size=None) as ws:
+        async with _ws().connect(_ws_url(url, sid), max_size=None) as ws:
             await ws.send("x" * (MAX_BODY * 2))
             try:
                 await asyncio.wait_for(ws.recv(), 5)
             except Exception as e:  # closed by the server (message too big)
                 closed = e
-        async with websockets_client.connect(_ws_url(url, "no-such-session")) as ws:
+        async with _ws().connect(_ws_url(url, "no-such-session")) as ws:
             m4 = json.loads(await ws.recv())
         return m1, m2, m3, closed, m4
 
     async def foreign():
         try:
-            async with websockets_client.connect(_ws_url(url, sid), origin="http://evil.example") as ws:
+            async with _ws().connect(_ws_url(url, sid), origin="http://evil.example") as ws:
                 await ws.recv()
         except Exception as e:
             return e
@@ -418,7 +422,7 @@ def test_twenty_sessions_edit_at_once(served):
     async def one(k, http):
         r = await http.post("/api/session", json={})
         sid = r.json()["session"]
-        async with websockets_client.connect(_ws_url(url, sid)) as ws:
+        async with _ws().connect(_ws_url(url, sid)) as ws:
             await ws.send(json.dumps({"seq": 0, "ops": [{"op": "add", "t": 1.0, "s": 1.0}]}))
             await _ws_collect(ws, 0)
             for e in range(1, n_edits + 1):

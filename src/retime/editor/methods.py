@@ -473,7 +473,3 @@ def check_params(method_name, values: dict, clip: Clip) -> dict:
 
 def default_params(method_name, clip: Clip) -> dict:
     return {p.name: p.default for p in METHODS[method_name].param_specs(clip)}
-
-
-def now_ms():
-    return time.perf_counter() * 1000.0

@@ -16,7 +16,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import RetimeError
-from ..io_util import atomic_write
 from ..motion import save_bvh
 from ..warp import apply_timing, snap_duration
 from .methods import METHODS, Clip, ControlPoint, Job, Solution, check_params, default_params
