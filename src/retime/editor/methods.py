@@ -16,7 +16,6 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import math
-import time
 from dataclasses import dataclass, field
 from typing import Callable, Iterator
 
