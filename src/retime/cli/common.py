@@ -7,7 +7,7 @@ from pathlib import Path
 from ..errors import RetimeError
 from ..io_util import check_not_input
 from ..motion import load_motion, save_bvh
-from ..warp import TimingCurve, keytime_warp, scale_warp, snap_duration
+from ..warp import TimingCurve, scale_warp, snap_duration
 
 
 def add_motion_args(p):

@@ -1,5 +1,5 @@
 from ..errors import RetimeError
-from ..warp import TimingCurve, apply_timing, keytime_warp, scale_warp
+from ..warp import apply_timing, keytime_warp, scale_warp
 from .common import add_duration_args, add_motion_args, add_output_args, check_output, load_input, target_duration, write_outputs
 
 
