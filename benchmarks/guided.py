@@ -187,8 +187,9 @@ def long_clip(clips, frames=18000, seed=0):
             speed = rng.uniform(0.75, 1.3)
             t = np.arange(0.0, mo.duration, speed / A)
             x = analysis_poses(mo, A, times=t).reshape(len(t), -1, 3)
-            if rep % 2:
-                x = x[:, mirror] * np.array([-1.0, 1.0, 1.0])
+            if rep % 2:  # mirrored: left and right swapped, x negated (the root-height row stays)
+                order = mirror + list(range(len(mirror), x.shape[1]))
+                x = x[:, order] * np.array([-1.0, 1.0, 1.0])
             chunks.append(x.reshape(len(t), -1))
             total += len(t)
         rep += 1

@@ -107,13 +107,13 @@ def solve_upper_bound(problem: WarpProblem, F, stats: SolveStats | None = None):
 
 
 def solve_heuristic(problem: WarpProblem, F=None, factor: int | None = None, radius: int | None = None,
-                    refine: int = 4, coarse_scores: str = "rows", stats: SolveStats | None = None):
+                    refine: int = 6, coarse_scores: str = "rows", stats: SolveStats | None = None):
     """Coarse-to-fine warp: (Solution, score table, stats).
 
     F: full score table if already computed (else only the rows and corridor scores needed
     are computed, the rest of the returned table is inf). factor: subsampling (default 4, less
     for short problems so that the coarse problem keeps some 40 output frames). radius: corridor
-    half-width in grid frames (default 2 s). refine: further corridor passes around the previous
+    half-width in grid frames (default 6 s). refine: further corridor passes around the previous
     result while it improves.
     """
     stats = stats if stats is not None else SolveStats()
@@ -123,7 +123,7 @@ def solve_heuristic(problem: WarpProblem, F=None, factor: int | None = None, rad
     if factor is None:
         factor = int(min(4, max(2, m // 40)))
     c = int(factor)
-    radius = 2 * s if radius is None else int(radius)
+    radius = 6 * s if radius is None else int(radius)
     if m < 4 * c or n < 4 * c:  # too small to coarsen: solve exactly
         from retime.guided.problem import solve_exact
 

@@ -374,7 +374,9 @@ def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_st
         with single_threaded_blas():
             np.matmul(xc[t0:t1], zt, out=G[:nt])
         _projections(G[:nt], st, a2, b2, c2, PI, PJ, PK)
-        kernel(PI, PJ, PK, zzp, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out)
+        # small dynamic chunks: a thread that the OS preempts does not hold up the other
+        with numba.parallel_chunksize(max(1, (j1 - j0) // (16 * numba.get_num_threads()))):
+            kernel(PI, PJ, PK, zzp, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out)
         j0 = j1
     return out
 
