@@ -171,4 +171,5 @@ def free_fall(g_source=G, g_new=G, mass=60.0, fps=120.0, n=40, vel=(1.0, 2.0, 0.
         b[:, 3:] = noise * mass * rng.normal(size=(n, 3))
         b[:, :3] += 0.2 * noise * mass * rng.normal(size=(n, 3))
     return SimpleNamespace(times=s, a=a, b=b, c=c, N=np.zeros((n, nv, 16)), contact=np.zeros((n, 1), bool),
-                           tau_lo=np.zeros(nv), tau_hi=np.zeros(nv), mass=mass)
+                           tau_lo=np.zeros(nv), tau_hi=np.zeros(nv), mass=mass, gravity=np.array([0.0, -g_new, 0.0]),
+                           vel=v0)
