@@ -450,3 +450,21 @@ def test_twenty_sessions_edit_at_once(served):
     assert len(latencies) == n_sessions * n_edits
     print(f"\n20 sessions x {n_edits} live edits: {wall:.2f} s wall, edit->solution median "
           f"{1000 * np.median(latencies):.1f} ms, p95 {1000 * np.percentile(latencies, 95):.1f} ms")
+
+
+def test_guided_edits_are_keytimes_and_the_warp_passes_through_them(client, clip):
+    if methods_mod.METHODS["guided"].availability(clip) is not None:
+        pytest.skip(methods_mod.METHODS["guided"].availability(clip))
+    sid = new_session(client)["session"]
+    edit(client, sid, {"op": "add", "t": 1.5, "s": 1.0}, {"op": "duration", "duration": 2.5})
+    sol = edit(client, sid, {"op": "method", "method": "guided"})
+    assert sol["method"] == "guided" and sol["info"]["keytimes"] == 0  # an unlocked point only follows
+    p = sol["points"][1]
+    t = np.asarray(sol["curve"]["t"])
+    assert np.interp(p["t"], t, sol["curve"]["s"]) == pytest.approx(p["s"], abs=2e-3)
+    sol = edit(client, sid, {"op": "move", "index": 1, "t": 0.8, "s": 1.6})  # moved: now a keytime
+    p = sol["points"][1]
+    assert p["locked"] and sol["info"]["keytimes"] == 1
+    k = int(round(p["t"] * clip.motion.fps))
+    assert sol["curve"]["s"][k] == pytest.approx(1.6, abs=1e-6) and t[k] == pytest.approx(p["t"], abs=1e-9)
+    assert np.all(np.diff(sol["curve"]["s"]) >= -1e-9) and sol["duration"] == pytest.approx(2.5)

@@ -138,6 +138,7 @@ class Method:
     description = ""
     params: tuple[Param, ...] = ()
     point_axes = "ts"  # which way the page lets interior control points move: "ts" both, "s" vertically
+    edits_are_keytimes = False  # True: a point the user moves or adds becomes a keytime (locked)
 
     def __init__(self, clip: Clip):
         self.clip = clip
@@ -181,7 +182,9 @@ class GuidedMethod(Method):
     name = "guided"
     label = "Guided"
     description = ("Keytimes (locked points) plus a reference: the warp whose local velocities and accelerations "
-                   "best match the reference, by exact dynamic programming (Hsu et al. 2007). Unlocked points follow.")
+                   "best match the reference, by exact dynamic programming (Hsu et al. 2007). Points you move or add "
+                   "become keytimes; unlocked points follow the solution.")
+    edits_are_keytimes = True
     params = (
         Param("reference", "Reference", "choice", "self",
               choices=(("self", "the motion itself (keep its timing)"), ("reference", "the --reference motion"))),

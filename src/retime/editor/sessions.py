@@ -106,8 +106,11 @@ class Session:
             spline = METHODS[method].point_axes == "s"  # knots fixed in normalized time
             t = _num(op, "t") if not spline or i == len(points) - 1 else points[i].t
             self._move(points, i, t, _num(op, "s"), scale_inner=spline)
+            if METHODS[method].edits_are_keytimes and 0 < i < len(points) - 1:
+                points[i].locked = True
         elif kind == "add":
-            self._add(points, _num(op, "t"), _num(op, "s"), bool(op.get("locked", False)))
+            self._add(points, _num(op, "t"), _num(op, "s"),
+                      bool(op.get("locked", False)) or METHODS[method].edits_are_keytimes)
         elif kind == "remove":
             i = self._index(op, points)
             if i in (0, len(points) - 1):
