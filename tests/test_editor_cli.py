@@ -25,7 +25,7 @@ CLI = [sys.executable, "-c", "import sys; from retime.cli import main; sys.exit(
 
 def start(args, cwd):
     return subprocess.Popen(CLI + args, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "BROWSER": "true"})
+                            env={k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "BROWSER")})
 
 
 def read_url(proc, timeout=30):
@@ -61,9 +61,10 @@ def listening_addresses(port):
 
 def test_edit_serves_on_loopback_and_stops_on_ctrl_c(tmp_path):
     out = tmp_path / "edits"
-    proc = start(["edit", str(bundled_path("16_06.amc")), "--no-browser", "-o", str(out)], tmp_path)
+    proc = start(["edit", str(bundled_path("16_06.amc")), "-o", str(out)], tmp_path)  # no display: no browser
     try:
-        url, port, _ = read_url(proc)
+        url, port, lines = read_url(proc)
+        assert "no display" in proc.stdout.readline() + proc.stdout.readline()
         assert out.is_dir()  # created
         r = httpx.get(url, timeout=10)
         assert r.status_code == 200 and "retime edit" in r.text

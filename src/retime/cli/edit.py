@@ -74,7 +74,10 @@ def run(args):
     print(f"retime edit: {clip.name} ({clip.motion.n_frames} frames at {clip.motion.fps:g} Hz) at {url}", flush=True)
     print(f"retime edit: exports go to {outdir.resolve()}; press Ctrl-C to stop", flush=True)
     if not args.no_browser:
-        threading.Timer(0.5, _open_browser, args=(url,)).start()
+        if _has_display():
+            threading.Timer(0.5, _open_browser, args=(url,)).start()
+        else:
+            print("retime edit: no display here; open the URL in a browser (ssh -L works too)", flush=True)
     try:
         server.run(sockets=[sock])
     except KeyboardInterrupt:
@@ -83,6 +86,16 @@ def run(args):
         sock.close()
     print("retime edit: stopped", file=sys.stderr, flush=True)
     return 0
+
+
+def _has_display():
+    """A graphical browser can open here (not, e.g., an ssh session without X, where Python's
+    webbrowser would start a text browser inside this terminal)."""
+    import os  # noqa: PLC0415
+
+    if sys.platform in ("darwin", "win32") or os.environ.get("BROWSER"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
 def _open_browser(url):
