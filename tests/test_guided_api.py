@@ -146,3 +146,15 @@ def test_paper_features_without_root_height(jump):
 
     res = guided_solve(jump, scale=0.6, weights=FeatureWeights(root_height=0.0))
     assert res.curve.duration == pytest.approx(guided_solve(jump, scale=0.6).curve.duration)
+
+
+def test_mixed_compression_and_expansion_between_keytimes(jump):
+    """First second compressed 2x, the rest expanded: each segment gets its own grid density."""
+    res = guided_solve(jump, duration=4.0, keytimes=[(1.0, 0.5)])
+    assert res.upsample[0] == 1 and res.upsample[1] >= 2
+    assert res.curve(0.5) == pytest.approx(1.0, abs=1e-9)
+    assert res.curve.duration == pytest.approx(4.0)
+    assert interval_speed(res.curve, 0.0, 1.0) == pytest.approx(2.0, rel=1e-6)
+    assert interval_speed(res.curve, 1.0, jump.duration) == pytest.approx((jump.duration - 1.0) / 3.5, rel=1e-6)
+    (a, b), = flight_phases(jump)
+    assert abs(interval_speed(res.curve, a, b) - 1.0) < 0.15

@@ -284,14 +284,41 @@ _KNN_SIG = numba.void(
     numba.boolean[:, ::1], numba.float64[:, :, ::1])
 
 
-def _gram_band(x: np.ndarray, width: int) -> np.ndarray:
+@njit(cache=True)
+def _gram_band(x, width):
     """H[t, delta] = x_t . x_{t+delta} for delta = 0..width (0 past the end)."""
-    n = x.shape[0]
+    n, D = x.shape
     H = np.zeros((n, width + 1))
-    for delta in range(width + 1):
-        if delta < n:
-            H[: n - delta, delta] = np.einsum("ij,ij->i", x[: n - delta], x[delta:])
+    for t in range(n):
+        xt = x[t]
+        for delta in range(min(width + 1, n - t)):
+            xu = x[t + delta]
+            acc = 0.0
+            for c in range(D):
+                acc += xt[c] * xu[c]
+            H[t, delta] = acc
     return H
+
+
+@njit(cache=True)
+def _reference_norms(z, st, a, b, c):
+    """|z_r|^2 of the reference features (frames r, r + st, r + 2 st), without building them."""
+    R = z.shape[0] - 2 * st
+    D = z.shape[1]
+    out = np.empty(R)
+    for r in range(R):
+        p = 0.0
+        v = 0.0
+        w = 0.0
+        for q in range(D):
+            z0 = z[r, q]
+            z1 = z[r + st, q]
+            z2 = z[r + 2 * st, q]
+            p += z1 * z1
+            v += (z2 - z0) * (z2 - z0)
+            w += (z2 - 2.0 * z1 + z0) * (z2 - 2.0 * z1 + z0)
+        out[r] = a * a * p + b * b * v + c * c * w
+    return out
 
 
 def _check(x, z, s, k, st=1):
@@ -352,8 +379,7 @@ def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_st
     a, b, c = coeffs
     a2, b2, c2 = a * a, b * b, c * c
     R = r - 2 * st
-    zf = reference_features(zc, coeffs, st)
-    zz = np.einsum("ij,ij->i", zf, zf)
+    zz = _reference_norms(zc, st, a, b, c)
     H = _gram_band(xc, 2 * s)
     kernel = compiled(_knn3_kernel if K <= 3 else _knn_kernel, _KNN_SIG)
     Rp = 8 * ((R + 7) // 8)  # PK rows padded to whole groups of eight references
@@ -361,9 +387,11 @@ def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_st
     step = max(1, rows - 2 * s)
     zt = np.ascontiguousarray(zc.T)
     G = np.empty((rows, r))
-    PI = np.zeros((rows, Rp))
-    PJ = np.zeros((rows, Rp))
-    PK = np.zeros((rows, Rp))
+    PI = np.empty((rows, Rp))
+    PJ = np.empty((rows, Rp))
+    PK = np.empty((rows, Rp))
+    for P_ in (PI, PJ, PK):
+        P_[:, R:] = 0.0
     zzp = np.full(Rp, INF)
     zzp[:R] = zz
     j0 = 0
