@@ -366,8 +366,7 @@ class PhysicsMethod(Method):
         rs = self.rs
         fps = self.clip.motion.fps
         curve = rs.curve(fps)
-        pts = [ControlPoint(p["output_time"], p["source_time"], bool(p["locked"]) or p["index"] in (0, len(rs.control_points()) - 1))
-               for p in rs.control_points()]
+        pts = [ControlPoint(p["output_time"], p["source_time"], bool(p["locked"])) for p in rs.control_points()]
         pts[0] = ControlPoint(0.0, 0.0, True)
         pts[-1] = ControlPoint(curve.duration, curve.source_duration, True)
         out = {"objective": info.objective, "iterations": info.iterations, "converged": info.converged,
