@@ -253,7 +253,7 @@ def _knn_kernel(PI, PJ, PK, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out):
                 out[j, d - 1, e] = _mean_root(H, i, j, d, e, a2, b2, c2, top, K)
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _projections(G, st, a2, b2, c2, PI, PJ, PK):
     """Three-tap filters of G along references: the per-frame parts of y . z_r.
 
@@ -261,7 +261,7 @@ def _projections(G, st, a2, b2, c2, PI, PJ, PK):
     """
     rows = G.shape[0]
     R = G.shape[1] - 2 * st
-    for t in range(rows):
+    for t in prange(rows):
         g = G[t]
         pi = PI[t]
         pj = PJ[t]
