@@ -32,8 +32,8 @@ def register(sub):
     p.add_argument("--reference", metavar="REF", help="motion whose timing to imitate (same skeleton; default: the input)")
     p.add_argument("--reference-fps", type=positive_float, metavar="HZ", help="frame rate of an .amc reference (default 120)")
     p.add_argument("--max-skip", type=int, default=8, metavar="S",
-                   help="skip limit: an output frame advances at most S grid frames, i.e. S analysis frames, or S/U when "
-                        "upsampled U times (default 8)")
+                   help="skip limit: an output frame advances at most S grid frames, so playback is at most S times "
+                        "the original speed (S/U when the grid is upsampled U times; default 8)")
     p.add_argument("--neighbors", type=int, default=3, metavar="K", help="nearest reference features per score (default 3)")
     p.add_argument("--fast", action="store_true", help="coarse-to-fine heuristic instead of the exact search")
     p.add_argument("--analysis-fps", type=positive_float, default=30.0, metavar="HZ",
