@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from ..errors import RetimeError
@@ -43,6 +44,9 @@ def main(argv=None) -> int:
     except RetimeError as e:
         print(f"retime {args.command}: error: {e}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # e.g. 'retime info X | head': the reader left, nothing to report
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # Python's documented recipe
+        return 0
     except OSError as e:  # e.g. an output folder without write permission, a full disk
         where = f"{e.filename}: " if getattr(e, "filename", None) else ""
         print(f"retime {args.command}: error: {where}{e.strerror or e}", file=sys.stderr)

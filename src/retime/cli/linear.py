@@ -20,6 +20,8 @@ def register(sub):
 def run(args):
     check_output(args)
     m = load_input(args)
+    if args.duration is None and args.scale is None and not args.keytime:
+        raise RetimeError("say how to retime: --duration SEC, --scale X or at least one --keytime SRC=DST")
     if m.n_frames < 2:
         raise RetimeError(f"{args.motion}: a single frame has no timing to change")
     if args.scale is not None and not args.keytime:
