@@ -35,7 +35,7 @@ import numpy as np
 
 from retime.guided import dp
 from retime.guided.api import analysis_poses
-from retime.guided.features import FeatureWeights
+from retime.guided.features import FeatureWeights, compact_columns
 from retime.guided.heuristic import solve_heuristic, solve_upper_bound
 from retime.guided.problem import WarpProblem
 from retime.motion import load_motion
@@ -108,7 +108,8 @@ def build_trials(clips):
         if x is None or z is None:
             print(f"{name}: skipped (clip not found: {desc})", file=sys.stderr)
             return
-        out[name] = (WarpProblem(np.ascontiguousarray(x), np.ascontiguousarray(z), A, None if free else m, {}, s, 3, W), desc)
+        x, z = compact_columns(x, z)  # as guided_solve does: constant coordinates out, shared ones merged
+        out[name] = (WarpProblem(x, z, A, None if free else m, {}, s, 3, W), desc)
 
     p = clips.poses("13_29.amc")  # exercises with still phases between them
     if p is not None:
@@ -193,7 +194,7 @@ def long_clip(clips, frames=18000, seed=0):
             chunks.append(x.reshape(len(t), -1))
             total += len(t)
         rep += 1
-    return np.concatenate(chunks)[:frames]
+    return compact_columns(np.concatenate(chunks)[:frames])[0]
 
 
 # ------------------------------------------------------------------------------ plain NumPy V1

@@ -30,7 +30,7 @@ from scipy.interpolate import CubicSpline
 
 from retime.errors import RetimeError
 from retime.guided import dp
-from retime.guided.features import FeatureWeights, lowpass, positions_in_root_frame
+from retime.guided.features import FeatureWeights, compact_columns, lowpass, positions_in_root_frame
 from retime.guided.heuristic import solve_heuristic, solve_upper_bound
 from retime.guided.postprocess import moving_average
 from retime.guided.problem import SolveStats, WarpProblem, solve_exact
@@ -97,11 +97,8 @@ def _pose_pair(motion, reference, root_height=0.0):
             order.append(len(order))
         b = b[:, order]
     x = a.reshape(a.shape[0], -1)
-    z = b.reshape(b.shape[0], -1)
-    keep = (np.ptp(x, axis=0) > 1e-9) | (np.ptp(z, axis=0) > 1e-9)
-    if not keep.any():
-        keep[:] = True
-    return np.ascontiguousarray(x[:, keep]), np.ascontiguousarray(z[:, keep])
+    z = x if reference is motion else b.reshape(b.shape[0], -1)
+    return compact_columns(x, z)
 
 
 def _sample(poses, fps, times):

@@ -127,6 +127,31 @@ def pose_matrix(root_frame_positions: np.ndarray, meters_per_unit: float = 1.0) 
     return np.ascontiguousarray(x)
 
 
+def compact_columns(x: np.ndarray, z: np.ndarray | None = None):
+    """Drop coordinates that are constant in both pose sets and merge identical ones.
+
+    Joints that share a position (children of one parent at the same offset, e.g. the clavicles and
+    the lower neck at the end of the thorax) give identical columns; one column scaled by
+    sqrt(count) gives exactly the same distances and products, with fewer dimensions.
+    Returns (x', z') (z' is x' when z is None or is x).
+    """
+    x = np.asarray(x, dtype=np.float64)
+    same = z is None or z is x
+    both = x if same else np.vstack([x, np.asarray(z, dtype=np.float64)])
+    keep = np.ptp(both, axis=0) > 0 if both.shape[0] > 1 else np.ones(both.shape[1], dtype=bool)
+    if not keep.any():
+        keep[:] = True
+    cols = both[:, keep]
+    _, first, counts = np.unique(cols, axis=1, return_index=True, return_counts=True)
+    order = np.argsort(first)
+    first, counts = first[order], counts[order]
+    scale = np.sqrt(counts.astype(np.float64))
+    out = np.ascontiguousarray(cols[:, first] * scale)
+    if same:
+        return out, out
+    return np.ascontiguousarray(out[: x.shape[0]]), np.ascontiguousarray(out[x.shape[0]:])
+
+
 def reference_features(z: np.ndarray, coeffs: tuple[float, float, float], stride: int = 1) -> np.ndarray:
     """Explicit feature vectors (r - 2 stride, 3 D) of a reference pose sequence ``z`` (r, D).
 
