@@ -158,3 +158,12 @@ def test_mixed_compression_and_expansion_between_keytimes(jump):
     assert interval_speed(res.curve, 1.0, jump.duration) == pytest.approx((jump.duration - 1.0) / 3.5, rel=1e-6)
     (a, b), = flight_phases(jump)
     assert abs(interval_speed(res.curve, a, b) - 1.0) < 0.15
+
+
+def test_cli_weights(tmp_path, capsys):
+    src = str(bundled_path("16_06.amc"))
+    out = tmp_path / "w.bvh"
+    assert main(["guided", src, "-o", str(out), "--scale", "0.6", "--weights", "1,1,0.1,0", "--quiet"]) == 0
+    with pytest.raises(SystemExit):
+        main(["guided", src, "-o", str(out), "--weights", "1,-2,0"])
+    assert "must be a finite number >= 0" in capsys.readouterr().err

@@ -36,6 +36,9 @@ def register(sub):
                         "the original speed (S/U when the grid is upsampled U times; default 8)")
     p.add_argument("--neighbors", type=int, default=3, metavar="K", help="nearest reference features per score (default 3)")
     p.add_argument("--fast", action="store_true", help="coarse-to-fine heuristic instead of the exact search")
+    p.add_argument("--weights", type=weights_arg, metavar="P,V,A[,H]",
+                   help="feature weights: pose, velocity (s), acceleration (s^2) and root height "
+                        "(default 1,0.1,0.01,1; H=0 gives the paper's torso-frame features only)")
     p.add_argument("--analysis-fps", type=positive_float, default=30.0, metavar="HZ",
                    help="rate of the search (default 30 Hz, as in the paper)")
     p.add_argument("--upsample", type=int, metavar="U",
@@ -48,6 +51,21 @@ def register(sub):
                    help="approximate nearest neighbours (KD-tree) with relative error EPS, for long references")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=run)
+
+
+def weights_arg(text):
+    try:
+        vals = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"weights must be 3 or 4 numbers like 1,0.1,0.01, got {text!r}") from None
+    if len(vals) not in (3, 4):
+        raise argparse.ArgumentTypeError(f"weights must be 3 or 4 numbers like 1,0.1,0.01, got {text!r}")
+    from ..guided import FeatureWeights
+
+    try:
+        return FeatureWeights(*vals)
+    except RetimeError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def run(args):
@@ -66,7 +84,7 @@ def run(args):
     result = guided_solve(
         motion, reference, duration=args.duration, scale=args.scale, free=bool(getattr(args, "free", False)),
         keytimes=args.keytime, max_skip=args.max_skip, neighbors=args.neighbors, fast=args.fast,
-        analysis_fps=args.analysis_fps, upsample=args.upsample, smoothing=args.smoothing,
+        analysis_fps=args.analysis_fps, weights=args.weights, upsample=args.upsample, smoothing=args.smoothing,
         knn="approx" if args.approx is not None else "exact", eps=args.approx or 0.0, quiet=args.quiet)
     curve = result.curve
     retimed = adaptive_smooth(motion, curve) if args.adaptive_smoothing else apply_timing(motion, curve)
