@@ -114,12 +114,13 @@ def test_distance_term_matches_geometry(setup):
             assert d == pytest.approx(R.polygon_distance(rs.polygon(i), (u, v)), abs=1e-9)
 
 
-def test_integral_matches_output_time_quadrature(setup):
-    """E = integral over output time (plus gamma ln(p')^2 per source second), checked against a
-    dense uniform quadrature in output time with the same per-frame integrand."""
+@pytest.mark.parametrize("interp", ["linear", "nearest"])
+def test_integral_matches_output_time_quadrature(setup, interp):
+    """E = integral over output time (plus gamma (p' + 1/p' - 2) per source second), checked against
+    a dense uniform quadrature in output time with the same per-frame integrand."""
     pd, rs, target = setup
     S = pd.times[-1]
-    obj = O.bake(pd, rs, target, alpha=3.0, beta=1.0, penalty="l2", gamma=0.3)
+    obj = O.bake(pd, rs, target, alpha=3.0, beta=1.0, penalty="l2", gamma=0.3, interp=interp)
     sp = _wiggly_spline(S, 1.3 * S, seed=7)
     E = O.evaluate(obj, sp)
     t = np.linspace(0, sp.duration, 40001)
@@ -130,19 +131,23 @@ def test_integral_matches_output_time_quadrature(setup):
         x = min(sk * fps, rs.n_frames - 1 - 1e-12)
         i = int(x)
         wgt = x - i
+        if interp == "nearest":
+            i, wgt = int(round(x)), 0.0
         f0 = O.frame_gradient(obj, i, u, v)[0]
         f1 = O.frame_gradient(obj, min(i + 1, rs.n_frames - 1), u, v)[0]
-        f[k] = (1 - wgt) * f0 + wgt * f1 + 0.3 * np.log(pdot[k]) ** 2 * pdot[k]
+        f[k] = (1 - wgt) * f0 + wgt * f1 + 0.3 * (pdot[k] + 1 / pdot[k] - 2) * pdot[k]
     ref = np.sum((f[1:] + f[:-1]) / 2 * np.diff(t))
     assert E == pytest.approx(ref, rel=2e-3)
 
 
 def test_samples_are_four_per_source_frame():
     times = np.arange(11) / 120.0
-    s, om, fi, fw = O.samples(times, 4)
+    s, om, fi, fw = O.samples(times, 4, "linear")
     assert len(s) == 41 and np.allclose(np.diff(s), 1 / 480)
     assert om.sum() == pytest.approx(times[-1])
     assert np.all((fi >= 0) & (fi <= 9)) and np.allclose(times[fi] + fw / 120.0, s)
+    s2, om2, fi2, fw2 = O.samples(times, 4, "nearest")
+    assert np.allclose(s2, s) and np.all(fw2 == 0) and np.all(np.abs(times[fi2] - s) <= 0.5 / 120 + 1e-12)
 
 
 def test_residual_scales_are_body_weights_per_unit_timing():

@@ -63,7 +63,7 @@ class BakedObjective:
     fi: np.ndarray  # (Ns,) frame index of each sample
     fw: np.ndarray  # (Ns,) weight of frame fi + 1
     cache: np.ndarray  # (n,) last wedge per frame (amortized lookup)
-    gamma: float = 0.0  # weight of the speed regularizer gamma * ln(p')^2 per source second
+    gamma: float = 0.0  # weight of the speed regularizer gamma (p' + 1/p' - 2) per source second
     delta: float = 0.0  # 0: alpha d^2 (Eq. 14); > 0: alpha (sqrt(d^2 + delta^2) - delta) (exact penalty)
     # unbaked data (NP-Obj): per wedge affine lambda and the dynamics
     seconds: float = 0.0
@@ -73,8 +73,12 @@ class BakedObjective:
         return len(self.times)
 
 
-def samples(times, samples_per_frame=4):
-    """Source sample times, trapezoid weights, frame index and interpolation weight."""
+def samples(times, samples_per_frame=4, interp="nearest"):
+    """Source sample times, trapezoid weights, frame index and interpolation weight.
+
+    ``interp="linear"`` blends the two frames around a sample (the paper's linear interpolation of
+    coefficients); ``"nearest"`` (default) takes the nearest frame's, which needs one frame
+    evaluation per sample instead of up to two (30% faster) for the same sampling density."""
     times = np.asarray(times, dtype=float)
     spf = int(samples_per_frame)
     if spf < 1:
@@ -86,6 +90,11 @@ def samples(times, samples_per_frame=4):
     fi = np.minimum(np.repeat(np.arange(n - 1), spf), n - 2)
     fi = np.append(fi, n - 2)
     fw = np.append(np.tile(sub, n - 1), 1.0)
+    if interp == "nearest":
+        fi = np.minimum(np.rint(fi + fw).astype(np.int64), n - 1)
+        fw = np.zeros_like(fw)
+    elif interp != "linear":
+        raise RetimeError(f"unknown interpolation {interp!r} (use 'nearest' or 'linear')")
     om = np.empty_like(s)
     ds = np.diff(s)
     om[0] = ds[0] / 2
@@ -134,7 +143,7 @@ def residual_scales(pd, body_weight, moment_arm=1.0, floor=0.01, actuated_cost=0
 
 def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_frame=4,
          metric="residual", excess=True, gamma=0.0, u_max=None, v_range=None, penalty="l2",
-         delta=1e-3) -> BakedObjective:
+         delta=1e-3, interp="nearest") -> BakedObjective:
     """Bake Eq. 14 into per-frame, per-wedge coefficients (sec. 3.6).
 
     ``metric``: ``"plane"`` measures the distance to the region in the (p'', p'^2) plane as the
@@ -180,7 +189,7 @@ def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_f
     cnt = np.diff(poff)
     sx = np.repeat(scale[:, 0], cnt)
     sy = np.repeat(scale[:, 1], cnt)
-    s, om, fi, fw = samples(regions.times, samples_per_frame)
+    s, om, fi, fw = samples(regions.times, samples_per_frame, interp)
     out = BakedObjective(np.asarray(regions.times, float), poff, px * sx, py * sy, cen * scale, scale, mode, wc,
                          float(alpha),
                          float(beta), float(tau_scale), s, om, fi, fw,
@@ -371,7 +380,7 @@ def _edge_proj(p0, nv, e, px, py, u, v):
     return ax + tc * ex, ay + tc * ey, t
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True, inline="always")
 def _frame_eval(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache, alpha, delta):
     """f, df/du, df/dv of frame i at (u, v) = (p'', p'^2) (polygon and centre in the frame's metric)."""
     su, sv = scale[i, 0], scale[i, 1]
@@ -443,7 +452,7 @@ def _frame_eval(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache, alpha, del
     return alpha * (r - delta) + g, k * du * su + gu, k * dv * sv + gv
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def _evaluate(c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode, wc, cache, alpha, delta,
               gamma, want_grad, gc):
     """Objective (and gradient w.r.t. c and T when want_grad) of the spline with coefficients c."""
@@ -520,12 +529,12 @@ def _evaluate(c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mod
             fu += wgt * fu1
             fv += wgt * fv1
         om = omega[jj]
-        lg = math.log(pd)
-        total += om * (f / pd + gamma * lg * lg)
+        ipd = 1.0 / pd
+        total += om * (f * ipd + gamma * (pd + ipd - 2.0))
         if want_grad:
-            # h = f / p' + gamma ln(p')^2 with u = p'', v = p'^2
-            hp = om * (2.0 * fv - f / (pd * pd) + 2.0 * gamma * lg / pd)
-            hpp = om * fu / pd
+            # h = f / p' + gamma (p' + 1/p' - 2) with u = p'', v = p'^2
+            hp = om * (2.0 * fv - (f + gamma) * ipd * ipd + gamma)
+            hpp = om * fu * ipd
             gT += hp * (-pd * invT) + hpp * (-2.0 * pdd * invT)
             for l in range(4):
                 N0 = Msp[m, 0, l] + x * (Msp[m, 1, l] + x * (Msp[m, 2, l] + x * Msp[m, 3, l]))

@@ -20,6 +20,7 @@ curve is unchanged); removing one drops a knot and refits by least squares.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from scipy.interpolate import BSpline
 
 from ..errors import RetimeError
@@ -29,7 +30,7 @@ class TimingSpline:
     """Knots (interior, normalized to (0, 1)), derivative coefficients ``w``, source duration ``S``
     and either a fixed duration ``T`` or ``T=None`` (free)."""
 
-    def __init__(self, interior_knots, w, source_duration, duration=None):
+    def __init__(self, interior_knots, w, source_duration, duration=None, locks=None):
         k = np.asarray(interior_knots, dtype=float).ravel()
         if np.any(np.diff(k) <= 0) or (len(k) and (k[0] <= 0 or k[-1] >= 1)):
             raise RetimeError("spline knots must increase strictly inside (0, 1)")
@@ -40,6 +41,7 @@ class TimingSpline:
         if len(w) != len(k) + 3:
             raise RetimeError(f"a spline with {len(k)} interior knots needs {len(k) + 3} derivative coefficients")
         self.w = w
+        self.locks = dict(locks or {})  # control point index -> source time (exact by construction)
         self._prepare()
 
     # -- construction --------------------------------------------------------------------------
@@ -65,8 +67,7 @@ class TimingSpline:
         return cls(k, w, source_duration, None if duration is None else duration)
 
     def copy(self):
-        out = TimingSpline(self.interior.copy(), self.w.copy(), self.S, self.fixed_T)
-        return out
+        return TimingSpline(self.interior.copy(), self.w.copy(), self.S, self.fixed_T, self.locks)
 
     def _prepare(self):
         k = self.interior
@@ -81,10 +82,21 @@ class TimingSpline:
     def free(self) -> bool:
         return self.fixed_T is None
 
+    def pieces(self):
+        """(indices, values) of the pinned coefficients: 0, the locked ones, the last."""
+        idx = [0] + sorted(k for k in self.locks if 0 < k < self.n_c - 1) + [self.n_c - 1]
+        val = [0.0] + [float(self.locks[k]) for k in idx[1:-1]] + [self.S]
+        return idx, val
+
+    def _pieces_arrays(self):
+        idx, val = self.pieces()
+        return np.asarray(idx, dtype=np.int64), np.asarray(val, dtype=float)
+
     def coefficients(self, w=None):
+        """c from w: each piece between pinned coefficients is normalized to its pinned span."""
         w = self.w if w is None else w
-        W = np.r_[0.0, np.cumsum(w * self.d)]
-        return self.S * W / W[-1]
+        idx, val = self._pieces_arrays()
+        return _coefficients(np.asarray(w, dtype=float), self.d, idx, val)
 
     def duration_of(self, w=None) -> float:
         w = self.w if w is None else w
@@ -99,16 +111,17 @@ class TimingSpline:
     def chain(self, gc, gT, w=None):
         """Gradient with respect to ``w`` from gradients with respect to c and T."""
         w = self.w if w is None else w
-        wd = w * self.d
-        W = float(wd.sum())
-        c = self.coefficients(w)
-        suffix = np.cumsum(gc[::-1])[::-1]  # suffix[k] = sum_{j>=k} gc_j
-        after = suffix[1:]  # sum_{k>i} gc_k for i = 0..n_c-2
-        g = (self.S * self.d / W) * (after - float(np.dot(gc, c)) / self.S)
-        if self.fixed_T is None:
-            T = self.S / W
-            g = g - gT * T * self.d / W
-        return g
+        idx, val = self._pieces_arrays()
+        return _chain(np.asarray(w, dtype=float), self.d, idx, val, np.asarray(gc, dtype=float), float(gT), self.S,
+                      self.fixed_T is None)
+
+    def gauge(self, w=None):
+        """Each piece's speed scale D_j / (W_j T) is free (the curve does not depend on it); this
+        sum of (W_j T / D_j - 1)^2 and its gradient pins it near 1 so that w reads as playback speed."""
+        w = self.w if w is None else w
+        idx, val = self._pieces_arrays()
+        return _gauge(np.asarray(w, dtype=float), self.d, idx, val, self.S,
+                      -1.0 if self.fixed_T is None else self.fixed_T)
 
     # -- evaluation ----------------------------------------------------------------------------
     def _bspline(self, w=None):
@@ -162,16 +175,20 @@ class TimingSpline:
 
     # -- editing -------------------------------------------------------------------------------
     def set_coefficients(self, c):
-        """Set w from coefficients c (c_0 = 0, c_last = S, increasing), keeping the duration."""
+        """Set w from coefficients c (c_0 = 0, c_last = S, increasing), keeping the duration; locked
+        coefficients take their values from c."""
         c = np.asarray(c, dtype=float)
         inc = np.diff(c)
         if np.any(inc <= 0):
             raise RetimeError("control points must increase in source time")
         T = self.duration
+        for k in self.locks:
+            self.locks[k] = float(c[k])
         self.w = inc / (self.d * T)
 
     def insert_knot(self, tau):
-        """Boehm knot insertion at normalized time ``tau``: one more control point, same curve."""
+        """Boehm knot insertion at normalized time ``tau``: one more control point, same curve.
+        (Locks refer to coefficient indices: the caller re-maps them, see RetimingSession.add.)"""
         tau = float(tau)
         if not (0 < tau < 1) or np.any(np.abs(self.interior - tau) < 1e-9):
             raise RetimeError(f"cannot add a control point at normalized time {tau:.6f}")
@@ -208,6 +225,79 @@ class TimingSpline:
         y = old.speed(tau * T)
         w, *_ = np.linalg.lstsq(D, y, rcond=None)
         self.w = np.maximum(w, w_min)
+
+
+@njit(cache=True)
+def _coefficients(w, d, idx, val):
+    n_c = len(w) + 1
+    c = np.empty(n_c)
+    for j in range(len(idx) - 1):
+        a, b = idx[j], idx[j + 1]
+        tot = 0.0
+        for i in range(a, b):
+            tot += w[i] * d[i]
+        D = val[j + 1] - val[j]
+        acc = 0.0
+        c[a] = val[j]
+        for i in range(a, b):
+            acc += w[i] * d[i]
+            c[i + 1] = val[j] + D * acc / tot
+        c[b] = val[j + 1]
+    return c
+
+
+@njit(cache=True)
+def _chain(w, d, idx, val, gc, gT, S, free):
+    n = len(w)
+    c = _coefficients(w, d, idx, val)
+    g = np.zeros(n)
+    W = 0.0
+    for i in range(n):
+        W += w[i] * d[i]
+    for j in range(len(idx) - 1):
+        a, b = idx[j], idx[j + 1]
+        D = val[j + 1] - val[j]
+        Wj = 0.0
+        for i in range(a, b):
+            Wj += w[i] * d[i]
+        mean = 0.0
+        for k in range(a, b + 1):
+            mean += gc[k] * (c[k] - val[j]) / D
+        after = 0.0
+        for i in range(b - 1, a - 1, -1):
+            after += gc[i + 1]
+            g[i] = (D * d[i] / Wj) * (after - mean)
+    if free:
+        T = S / W
+        for i in range(n):
+            g[i] -= gT * T * d[i] / W
+    return g
+
+
+@njit(cache=True)
+def _gauge(w, d, idx, val, S, fixed_T):
+    n = len(w)
+    W = 0.0
+    for i in range(n):
+        W += w[i] * d[i]
+    free = fixed_T < 0
+    T = S / W if free else fixed_T
+    total = 0.0
+    g = np.zeros(n)
+    for j in range(len(idx) - 1):
+        a, b = idx[j], idx[j + 1]
+        D = val[j + 1] - val[j]
+        Wj = 0.0
+        for i in range(a, b):
+            Wj += w[i] * d[i]
+        r = Wj * T / D - 1.0
+        total += r * r
+        for i in range(a, b):
+            g[i] += 2.0 * r * T * d[i] / D
+        if free:
+            for i in range(n):
+                g[i] -= 2.0 * r * Wj * T * d[i] / (W * D)
+    return total, g
 
 
 def _span_matrices(xi, breaks):
