@@ -314,9 +314,10 @@ def run_big(clips, repeat):
 
     t_obj, F = timed("objective", problem.scores)
     t_heu, (heu, _, _) = timed("heuristic", lambda: solve_heuristic(problem, F))
-    t_ub, (ub, _, _) = timed("upper_bound", lambda: solve_upper_bound(problem, F))
+    t_ub, (ub, _, ubstats) = timed("upper_bound", lambda: solve_upper_bound(problem, F))
     band = problem.band()
-    t_prune, pruned = timed("prune", lambda: dp.prune_band(F, problem.m, band, ub.objective))
+    t_prune, pruned = timed("prune", lambda: dp.prune_band(F, problem.m, band, ub.objective,
+                                                         hist=ubstats.extra.get("lagrange")))
     t_dp, sol = timed("band_dp", lambda: dp.solve_fixed(F, problem.m, band=pruned))
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     return {"trial": "10min", "n": problem.n, "m": problem.m, "r": problem.r, "s": problem.s,

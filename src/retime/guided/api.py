@@ -287,11 +287,12 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
             progress.say("upper bound")
             hsol, _, hstats = solve_upper_bound(problem, F)
             ub = hsol.objective
-            stats.extra["heuristic_objective"] = ub
-            stats.extra["heuristic_s"] = hstats.optimization_s
+            stats.extra["upper_bound"] = ub
+            stats.extra["lagrange"] = hstats.extra.get("lagrange")
             stats.optimization_s += hstats.optimization_s
         progress.say("exact search")
-        sol, F, stats = solve_exact(problem, F, upper_bound=ub, stats=stats)
+        sol, F, stats = solve_exact(problem, F, upper_bound=ub, stats=stats,
+                                    lagrange=stats.extra.pop("lagrange", None) if ub is not None else None)
         exact = True
     progress.close()
 

@@ -522,10 +522,12 @@ def _lagrange_path(F, s, lam):
     return res
 
 
-def lagrange_path(F, m):
-    """The warp minimising cost + lam * steps whose length is closest to m (any length)."""
+def lagrange_path(F, m, hist=None):
+    """The warp minimising cost + lam * steps whose length is closest to m (any length).
+
+    hist: the result of :func:`lagrange_multipliers` if already computed."""
     F = np.ascontiguousarray(F, dtype=np.float64)
-    hist = lagrange_multipliers(F, m)
+    hist = lagrange_multipliers(F, m) if hist is None else hist
     best = None
     for _, lam in hist[:8]:
         path = _lagrange_path(F, F.shape[1], lam)
@@ -642,7 +644,7 @@ def _paint(PA, PB, m, ascending):
 PRICE_SPREAD = (-3.0, -1.0, -0.3, -0.1, -0.03, -0.01, 0.0, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
 
 
-def prune_band(F, m, band: Band, upper_bound: float, spread=PRICE_SPREAD) -> Band:
+def prune_band(F, m, band: Band, upper_bound: float, spread=PRICE_SPREAD, hist=None) -> Band:
     """The band cut down to positions/frames that can still lie on a warp costing <= upper_bound.
 
     For a vertex (i, j) with j at output position p and step prices a, b:
@@ -654,7 +656,7 @@ def prune_band(F, m, band: Band, upper_bound: float, spread=PRICE_SPREAD) -> Ban
     """
     F = np.ascontiguousarray(F, dtype=np.float64)
     n, s = F.shape[0], F.shape[1]
-    hist = lagrange_multipliers(F, m)
+    hist = lagrange_multipliers(F, m) if hist is None else hist
     if not hist:
         return band
     lam0 = hist[0][1]

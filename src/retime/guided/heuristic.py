@@ -83,27 +83,48 @@ def corridor(problem: WarpProblem, cpos, cfrm, cpath, radius: int) -> dp.Band:
     return dp.feasible_band(problem.n, m, problem.s, problem.fixed, lower, upper)
 
 
-def solve_upper_bound(problem: WarpProblem, F, stats: SolveStats | None = None):
+def solve_upper_bound(problem: WarpProblem, F, stats: SolveStats | None = None, radius: int | None = None,
+                      refine: int = 6):
     """A near-optimal feasible warp from the full score table, for pruning the exact search.
 
-    The better of the coarse-to-fine warp and a corridor search around the Lagrangian path (the
-    cheapest warp of any length under the step price that makes its length closest to m).
+    A corridor search around the Lagrangian path (the cheapest warp of any length under the step
+    price that makes its length closest to m), refined around its own result while that improves;
+    the coarse-to-fine heuristic if that corridor cannot hold a warp. The step prices found on the
+    way are left in ``stats.extra["lagrange"]`` for :func:`retime.guided.dp.prune_band`.
     """
     stats = stats if stats is not None else SolveStats()
-    sol, F, stats = solve_heuristic(problem, F, stats=stats)
     t0 = time.perf_counter()
-    path = dp.lagrange_path(F, problem.m)
+    hist = dp.lagrange_multipliers(F, problem.m)
+    stats.extra["lagrange"] = hist
+    path = dp.lagrange_path(F, problem.m, hist) if hist else None
+    radius = 6 * problem.s if radius is None else int(radius)
+    sol = None
     if path is not None and len(path) >= 2:
-        pos = np.linspace(0, problem.m - 1, len(path))
         try:
-            band = corridor(problem, pos, path, np.arange(len(path)), 2 * problem.s)
-            alt = dp.solve_fixed(F, problem.m, band=band)
-            if alt.objective < sol.objective:
-                sol = alt
+            band = corridor(problem, np.linspace(0, problem.m - 1, len(path)), path, np.arange(len(path)), radius)
+            sol = _refine(problem, F, band, radius, refine, stats)
         except dp.InfeasibleWarp:
-            pass
+            sol = None
     stats.optimization_s += time.perf_counter() - t0
+    if sol is None:
+        sol, F, stats = solve_heuristic(problem, F, stats=stats)
     return sol, F, stats
+
+
+def _refine(problem, F, band, radius, refine, stats):
+    """DP in ``band``, then again in a corridor around each result while it improves."""
+    sol = None
+    m = problem.m
+    for _ in range(1 + max(0, int(refine))):
+        stats.states += band.n_states(problem.s)
+        new = dp.solve_fixed(F, m, band=band)
+        if sol is not None and new.objective >= sol.objective - 1e-12 * max(1.0, abs(sol.objective)):
+            break
+        sol = new
+        if radius == 0:
+            break
+        band = corridor(problem, np.arange(m), sol.frames, np.arange(m), radius)
+    return sol
 
 
 def solve_heuristic(problem: WarpProblem, F=None, factor: int | None = None, radius: int | None = None,

@@ -82,7 +82,7 @@ class SolveStats:
     extra: dict = field(default_factory=dict)
 
 
-def solve_exact(problem: WarpProblem, F=None, upper_bound=None, stats: SolveStats | None = None):
+def solve_exact(problem: WarpProblem, F=None, upper_bound=None, stats: SolveStats | None = None, lagrange=None):
     """Globally optimal warp (frames, objective). ``F``: precomputed score table.
 
     With ``upper_bound`` (the cost of any feasible warp, e.g. the heuristic's) the band is first
@@ -102,7 +102,7 @@ def solve_exact(problem: WarpProblem, F=None, upper_bound=None, stats: SolveStat
         band = problem.band()
         stats.states = band.n_states(problem.s)
         if upper_bound is not None and np.isfinite(upper_bound):
-            band = dp.prune_band(F, problem.m, band, upper_bound)
+            band = dp.prune_band(F, problem.m, band, upper_bound, hist=lagrange)
             stats.pruned_states = band.n_states(problem.s)
         sol = dp.solve_fixed(F, problem.m, band=band)
     stats.optimization_s += time.perf_counter() - t0
