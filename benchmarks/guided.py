@@ -15,7 +15,7 @@ Targets (issue 3, this 2-core machine):
   a 10-minute clip at 30 Hz (n = 18,000, m = 10,800, reference = itself): exact <= 10 s and 2 GB,
   heuristic <= 1 s.
 
-Usage: python3 benchmarks/guided.py [--repeat N] [--json] [--skip-18k] [--data DIR]
+Usage: python3 benchmarks/guided.py [--repeat N (default 10)] [--json] [--skip-18k] [--data DIR]
 Clips come from --data, $RETIME_CMU_DATA, ../shared/data/cmu or the clips bundled with retime (trials
 whose clips are missing are skipped with a message). --json prints one JSON object per trial with keys
 trial, n, m, r, s, objective_s, optimization_s, heuristic_s (and more). Exit code 1 if a target is missed.
@@ -339,7 +339,7 @@ def fmt(v, digits=3):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--repeat", type=int, default=10, help="runs per figure; the best is reported (default 10)")
     ap.add_argument("--json", action="store_true", help="one JSON object per trial")
     ap.add_argument("--skip-18k", action="store_true", help="leave out the 10-minute case")
     ap.add_argument("--data", help="folder with the CMU clips")
