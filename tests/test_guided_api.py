@@ -167,3 +167,15 @@ def test_cli_weights(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["guided", src, "-o", str(out), "--weights", "1,-2,0"])
     assert "must be a finite number >= 0" in capsys.readouterr().err
+
+
+def test_pruned_path_of_guided_solve_is_exact(jump, monkeypatch):
+    """guided_solve prunes big problems (upper bound + Lagrangian bounds); force it on a small one."""
+    from retime.guided import api
+
+    plain = guided_solve(jump, scale=0.6)
+    monkeypatch.setattr(api, "PRUNE_STATES", 0)
+    pruned = guided_solve(jump, scale=0.6)
+    assert pruned.stats.pruned_states is not None and pruned.stats.pruned_states <= pruned.stats.states
+    assert pruned.objective == pytest.approx(plain.objective, rel=1e-12)
+    assert np.array_equal(pruned.frames, plain.frames) or pruned.objective == pytest.approx(plain.objective)
