@@ -94,32 +94,28 @@ class Problem:
         c = sp.coefficients(w)
         T = sp.duration_of(w)
         rows, jac = [], []
-        if self.keytimes:
-            from scipy.interpolate import BSpline
-
-            for s_star, t_star in self.keytimes:
-                tau = min(max(t_star / T, 0.0), 1.0)
-                Nb = BSpline.design_matrix(np.array([tau]), sp.xi, 3).toarray()[0]
-                dN = _basis_derivative(sp.xi, tau)
-                val = float(Nb @ c) - s_star
-                gT = -float(dN @ c) * tau / T if 0.0 < tau < 1.0 else 0.0
-                rows.append(val)
-                jac.append(sp.chain(Nb, gT, w))
+        for s_star, t_star in self.keytimes:
+            tau = min(max(t_star / T, 0.0), 1.0)
+            Nb, dN = _basis_at(sp, tau)
+            val = float(Nb @ c) - s_star
+            gT = -float(dN @ c) * tau / T if 0.0 < tau < 1.0 else 0.0
+            rows.append(val)
+            jac.append(sp.chain(Nb, gT, w))
         if not rows:
             return np.zeros(0), np.zeros((0, len(w)))
         return np.array(rows), np.array(jac)
 
 
-def _basis_derivative(xi, tau):
-    from scipy.interpolate import BSpline
-
-    n_c = len(xi) - 4
-    out = np.zeros(n_c)
-    for k in range(n_c):
-        coef = np.zeros(n_c)
-        coef[k] = 1.0
-        out[k] = BSpline(xi, coef, 3).derivative(1)(tau)
-    return out
+def _basis_at(sp, tau):
+    """Cubic basis values and derivatives (d/dtau) of all coefficients at ``tau`` (span polynomials)."""
+    m = int(np.clip(np.searchsorted(sp.breaks, tau, side="right") - 1, 0, len(sp.breaks) - 2))
+    x = tau - sp.breaks[m]
+    M = sp.span_matrices[m]
+    Nb = np.zeros(sp.n_c)
+    dN = np.zeros(sp.n_c)
+    Nb[m:m + 4] = M[0] + x * (M[1] + x * (M[2] + x * M[3]))
+    dN[m:m + 4] = M[1] + x * (2 * M[2] + 3 * x * M[3])
+    return Nb, dN
 
 
 def check_keytimes(keytimes, S, T=None):
@@ -156,6 +152,7 @@ def _lbfgs_inner(fun, w0, bounds, max_iter, tol, memory=12):
     x = np.clip(np.asarray(w0, dtype=float), lo, hi)
     f, g = fun(x)
     S, Y, rho = [], [], []
+    hist = [f]
     it = 0
     for it in range(1, max_iter + 1):
         free = ~(((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0)))
@@ -192,7 +189,9 @@ def _lbfgs_inner(fun, w0, bounds, max_iter, tol, memory=12):
             S.append(s_), Y.append(y_), rho.append(1.0 / sy)
             if len(S) > memory:
                 S.pop(0), Y.pop(0), rho.pop(0)
-        done = abs(f - fn) <= tol * max(1.0, abs(f))
+        hist.append(fn)
+        # converged when the last 10 iterations together gained less than 10 * tol (relative)
+        done = len(hist) > 10 and hist[-11] - fn <= 10 * tol * max(1.0, abs(fn))
         x, f, g = xn, fn, gn
         pg = np.where(free, g, 0.0)
         if done or np.max(np.abs(pg)) <= 1e-12:
@@ -300,7 +299,8 @@ def _augmented_lagrangian(problem, w, bounds, inner, max_iter, tol, eq_tol, t0, 
             h, J = problem.eq(x)
             return f + mu @ h + 0.5 * rho * h @ h, g + J.T @ (mu + rho * h)
 
-        w, it, ok_in, msg = inner(fun, w, bounds, max_iter, tol)
+        # loose inner solves while the multipliers are still far off, tight ones at the end
+        w, it, ok_in, msg = inner(fun, w, bounds, max_iter, tol if last < 10 * eq_tol else max(tol, 1e-6))
         iters += it
         h, _ = problem.eq(w)
         viol = float(np.max(np.abs(h)))

@@ -191,7 +191,7 @@ class TimingSpline:
         (Locks refer to coefficient indices: the caller re-maps them, see RetimingSession.add.)"""
         tau = float(tau)
         if not (0 < tau < 1) or np.any(np.abs(self.interior - tau) < 1e-9):
-            raise RetimeError(f"cannot add a control point at normalized time {tau:.6f}")
+            raise RetimeError(f"cannot add a control point at normalized time {tau:.6f}: outside (0, 1) or on an existing knot")
         T = self.duration
         c = self.coefficients()
         xi = self.xi

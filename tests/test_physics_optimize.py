@@ -1,0 +1,171 @@
+"""The timing spline and its optimization (sec. 3, 3.6): monotone curve, exact locks, keytimes,
+the optimizers and the interactive session."""
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, os.path.dirname(__file__))
+import physics_synth as ps  # noqa: E402
+
+from retime.physics import objective as O  # noqa: E402
+from retime.physics import regions as R  # noqa: E402
+from retime.physics.api import make_problem  # noqa: E402
+from retime.physics.optimize import RetimingSession, solve  # noqa: E402
+from retime.physics.spline import TimingSpline  # noqa: E402
+
+G = 9.81
+
+
+def test_uniform_spline_is_linear_timing():
+    sp = TimingSpline.uniform(3.0, 12, 2.0)
+    t = np.linspace(0, 2, 101)
+    assert np.allclose(sp(t), 1.5 * t) and np.allclose(sp.speed(t), 1.5) and np.allclose(sp.accel(t), 0, atol=1e-9)
+    assert sp.duration == 2.0
+    free = TimingSpline.uniform(3.0, 12)
+    assert free.free and free.duration == pytest.approx(3.0)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_any_positive_w_gives_a_monotone_curve_through_the_ends(seed):
+    rng = np.random.default_rng(seed)
+    for T in (None, 2.5):
+        sp = TimingSpline.uniform(4.0, 20, T)
+        sp.w = np.exp(rng.normal(size=sp.w.size))
+        t = np.linspace(0, sp.duration, 2001)
+        p = sp(t)
+        assert p[0] == pytest.approx(0.0, abs=1e-12) and p[-1] == pytest.approx(4.0)
+        assert np.all(np.diff(p) > 0)
+        kappa = 4.0 / (sp.duration * np.dot(sp.w, sp.d))
+        assert np.min(sp.speed(t)) >= kappa * sp.w.min() * (1 - 1e-9)
+
+
+@pytest.mark.parametrize("free,locks", [(False, {}), (True, {}), (False, {5: 1.1, 12: 2.4}), (True, {7: 1.9})])
+def test_chain_rule_and_gauge_match_finite_differences(free, locks):
+    rng = np.random.default_rng(1)
+    sp = TimingSpline.uniform(4.0, 18, None if free else 3.0)
+    sp.locks = dict(locks)
+    sp.w = np.exp(0.3 * rng.normal(size=sp.w.size))
+    a = rng.normal(size=sp.n_c)
+    bT = 0.7
+
+    def F(w):
+        return float(a @ sp.coefficients(w) + bT * sp.duration_of(w))
+
+    g = sp.chain(a, bT)
+    gv, gg = sp.gauge()
+    for k in range(0, sp.w.size, 3):
+        e = np.zeros(sp.w.size)
+        e[k] = 1e-6
+        assert g[k] == pytest.approx((F(sp.w + e) - F(sp.w - e)) / 2e-6, rel=1e-6, abs=1e-9)
+        assert gg[k] == pytest.approx((sp.gauge(sp.w + e)[0] - sp.gauge(sp.w - e)[0]) / 2e-6, rel=1e-5, abs=1e-8)
+    c = sp.coefficients()
+    for k, v in locks.items():
+        assert c[k] == pytest.approx(v, abs=1e-12)
+
+
+def test_knot_insertion_keeps_the_curve_and_removal_refits():
+    rng = np.random.default_rng(2)
+    sp = TimingSpline.uniform(3.0, 10, 2.0)
+    sp.w = np.exp(0.2 * rng.normal(size=sp.w.size))
+    t = np.linspace(0, 2, 501)
+    before = sp(t)
+    sp.insert_knot(0.537)
+    assert len(sp.w) == 13
+    assert np.max(np.abs(sp(t) - before)) < 1e-12
+    sp.remove_knot(3)
+    assert np.max(np.abs(sp(t) - before)) < 0.02 * 3.0
+
+
+@pytest.fixture(scope="module")
+def quarter_jump():
+    """A rigid jump recorded under g, retimed under g/4: the flight must play at sqrt(1/4)."""
+    ref = ps.rigid_jump()
+    pd = ps.rigid_jump(gravity=(0.0, -G / 4, 0.0), limits=ref.tau_hi[6:])
+    rs = R.compute_regions(pd, R.RegionOptions(workers=1, body_weight=ref.mass * G), reference=ref)
+    target = ref.b + ref.c - np.einsum("nvk,nk->nv", ref.N, rs.lam0)
+    obj = O.bake(pd, rs, target, alpha=10.0, beta=0.1, penalty="l1", gamma=0.03)
+    return pd, rs, obj
+
+
+def _flight_speed(pd, spline):
+    s = pd.times[pd.flight]
+    t0, t1 = spline.inverse(np.array([s[0], s[-1]]))
+    return (s[-1] - s[0]) / (t1 - t0)
+
+
+@pytest.mark.parametrize("method", ["lbfgs", "lbfgsb"])
+def test_quarter_gravity_halves_the_flight_speed(quarter_jump, method):
+    pd, rs, obj = quarter_jump
+    pr = make_problem(obj, pd.times[-1], None)
+    w, info = solve(pr, method=method, max_iter=3000)
+    pr.spline.w = w
+    assert pr.spline.free and pr.spline.duration > pd.times[-1]
+    assert 0.45 <= _flight_speed(pd, pr.spline) <= 0.56
+
+
+@pytest.mark.parametrize("method", ["lbfgs", "slsqp", "gd"])
+def test_keytimes_hold_exactly(quarter_jump, method):
+    pd, rs, obj = quarter_jump
+    S = pd.times[-1]
+    kt = [(1.8, 1.5), (2.4, 2.6)]
+    pr = make_problem(obj, S, S, keytimes=kt)
+    w, info = solve(pr, method=method, max_iter=1000 if method != "gd" else 300)
+    pr.spline.w = w
+    for s_star, t_star in kt:
+        assert pr.spline(t_star) == pytest.approx(s_star, abs=2e-5)
+    assert info.constraint_violation < 2e-5
+
+
+def test_methods_reach_the_same_optimum(quarter_jump):
+    pd, rs, obj = quarter_jump
+    S = pd.times[-1]
+    vals = []
+    for method in ("lbfgs", "lbfgsb", "slsqp"):
+        pr = make_problem(obj, S, 0.9 * S, knot_spacing=0.2)
+        w, info = solve(pr, method=method, max_iter=2000)
+        vals.append(info.objective)
+    assert max(vals) - min(vals) <= 2e-3 * max(1.0, min(vals))
+
+
+def test_session_move_lock_add_remove(quarter_jump):
+    pd, rs, obj = quarter_jump
+    S = pd.times[-1]
+    sess = RetimingSession(make_problem(obj, S, S), fps=120.0)
+    sess.reconverge(max_iter=2000)
+    e0 = sess.objective()
+    cps = sess.control_points()
+    k = len(cps) // 2
+    target = 0.5 * (cps[k]["source_time"] + cps[k + 1]["source_time"])
+    sess.move(k, target, lock=True)
+    assert sess.control_points()[k]["locked"]
+    e_moved = sess.objective()
+    info = sess.reconverge(max_iter=2000)
+    assert sess.spline.coefficients()[k] == pytest.approx(target, abs=1e-12)  # exact, not penalized
+    assert info.objective <= e_moved and info.objective >= e0 - 1e-2 * e0
+    # adding a point leaves the curve as it is
+    t = np.linspace(0, S, 301)
+    before = sess.spline(t)
+    j = sess.add(0.313 * S)
+    assert np.max(np.abs(sess.spline(t) - before)) < 1e-9
+    assert any(cp["locked"] for cp in sess.control_points())
+    sess.remove(j)
+    sess.lock(next(cp["index"] for cp in sess.control_points() if cp["locked"]), False)
+    assert not any(cp["locked"] for cp in sess.control_points())
+    sess.reconverge(max_iter=2000)
+    assert sess.objective() <= e0 * (1 + 1e-3)  # no constraint left: no worse than before
+    curve = sess.curve()
+    assert curve.duration == pytest.approx(S) and np.all(np.diff(curve(t)) >= 0)
+
+
+def test_bad_keytimes_are_refused():
+    from retime.errors import RetimeError
+    from retime.physics.optimize import check_keytimes
+
+    with pytest.raises(RetimeError, match="outside the motion"):
+        check_keytimes([(5.0, 1.0)], 3.0, 2.0)
+    with pytest.raises(RetimeError, match="out of order"):
+        check_keytimes([(1.0, 1.5), (2.0, 1.0)], 3.0, 2.0)
