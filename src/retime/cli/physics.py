@@ -94,7 +94,11 @@ def run(args):
         if name not in m.skeleton.names:
             raise RetimeError(f"--mass {name}={f:g}: no segment named {name!r}; segments: {', '.join(m.skeleton.names)}")
         masses[name] = masses.get(name, 1.0) * f
-    result = physics_warp(m, duration=target_duration(args, m), gravity=gravity, mass_factors=masses or None,
+    from ..physics.optimize import check_keytimes
+
+    duration = target_duration(args, m)
+    check_keytimes(args.keytime, m.duration, duration)  # before the dynamics: fail fast
+    result = physics_warp(m, duration=duration, gravity=gravity, mass_factors=masses or None,
                           objective=args.objective, keytimes=args.keytime, body=args.body, contacts=args.contacts,
                           friction=args.friction, torque_scale=args.torque_scale, method=args.method,
                           progress=not args.quiet)
