@@ -327,7 +327,7 @@ def _walk(A, zl, zu, basic, atupper, theta0, max_iter):
     rhs = np.zeros(m)
     y1 = np.zeros(m)
     y2 = np.zeros(m)
-    colj = np.zeros(m)
+    col = np.zeros(m)
     theta = theta0
     end = theta0 + 2.0 * math.pi
     status = 0
@@ -348,9 +348,11 @@ def _walk(A, zl, zu, basic, atupper, theta0, max_iter):
             j = n + r
             if not isbasic[j]:
                 rhs[r] += z[j]
-        zb = Binv @ rhs
         for r in range(m):
-            z[basic[r]] = zb[r]
+            acc = 0.0
+            for q in range(m):
+                acc += Binv[r, q] * rhs[q]
+            z[basic[r]] = acc
         if nout == 0 or abs(z[0] - out_v[nout - 1, 0]) + abs(z[1] - out_v[nout - 1, 1]) > 1e-12 * (
                 1.0 + abs(z[0]) + abs(z[1])):
             out_v[nout, 0] = z[0]
@@ -409,12 +411,13 @@ def _walk(A, zl, zu, basic, atupper, theta0, max_iter):
         dirn = -1.0 if up[jin] else 1.0
         if jin < n:
             for r in range(m):
-                colj[r] = A[r, jin]
+                acc = 0.0
+                for q in range(m):
+                    acc += Binv[r, q] * A[q, jin]
+                col[r] = acc
         else:
             for r in range(m):
-                colj[r] = 0.0
-            colj[jin - n] = -1.0
-        col = Binv @ colj
+                col[r] = -Binv[r, jin - n]
         tmax = zu[jin] - zl[jin]
         leave = -1
         leave_up = False
@@ -464,13 +467,14 @@ def _walk(A, zl, zu, basic, atupper, theta0, max_iter):
             Binv = np.linalg.inv(B)
             since_refactor = 0
         else:
-            rowp = Binv[leave, :] / piv
+            for q in range(m):
+                Binv[leave, q] /= piv
             for r in range(m):
                 if r != leave:
                     f = col[r]
                     if f != 0.0:
-                        Binv[r, :] -= f * rowp
-            Binv[leave, :] = rowp
+                        for q in range(m):
+                            Binv[r, q] -= f * Binv[leave, q]
             since_refactor += 1
     return out_v[:nout].copy(), out_x[:nout].copy(), status, it
 
@@ -789,8 +793,8 @@ def _widen(lo, hi, amount, pad):
 def _lp_rows(N, act, nv):
     if len(act) == 0:
         return np.zeros(0, dtype=int), np.arange(nv)
-    rows = np.flatnonzero(np.any(N[:, act] != 0.0, axis=1))
-    return rows, np.setdiff1d(np.arange(nv), rows)
+    mask = np.any(N[:, act] != 0.0, axis=1)
+    return np.flatnonzero(mask), np.flatnonzero(~mask)
 
 
 def _frame_lp(a, b, c, N, lo, hi, rho, act, rows, opts):
@@ -1028,13 +1032,25 @@ def base_bounds(pd, opts, bw, n_root):
     return lo, hi
 
 
+_BOUNDS = {}
+
+
+def _bounds_cached(pd, opts, bw, n_root):
+    key = (id(pd), id(opts), bw, n_root)
+    if key not in _BOUNDS:
+        if len(_BOUNDS) > 8:
+            _BOUNDS.clear()
+        _BOUNDS[key] = (pd, base_bounds(pd, opts, bw, n_root))  # keep pd alive: ids stay unique
+    return _BOUNDS[key][1]
+
+
 def _one(pd, ref, i, opts, bw, n_root):
-    lo, hi = base_bounds(pd, opts, bw, n_root)
+    lo, hi = _bounds_cached(pd, opts, bw, n_root)
     budget = None
     n_ref = 0
     lam0 = res0 = None
     if ref is not None:
-        rlo, rhi = base_bounds(ref, opts, bw, n_root)
+        rlo, rhi = _bounds_cached(ref, opts, bw, n_root)
         budget, res0, lam0, n_ref = source_fit(np.asarray(ref.a[i], float), np.asarray(ref.b[i], float),
                                                np.asarray(ref.c[i], float), np.asarray(ref.N[i], float),
                                                rlo, rhi, opts, bw, n_root)
@@ -1116,4 +1132,5 @@ def compute_regions(pd, options: RegionOptions | None = None, reference=None, fr
         body_weight=bw,
     )
     rs.seconds = time.perf_counter() - t0
+    _BOUNDS.clear()
     return rs
