@@ -156,3 +156,14 @@ def test_residual_scales_are_body_weights_per_unit_timing():
     # root force m x'' per unit p'^2 is m g: one body weight; per unit p'' it is m |x'| / W
     assert np.allclose(sc[:, 1], 1.0)
     assert np.allclose(sc[:, 0], np.linalg.norm(pd.a[:, :3], axis=1) / (pd.mass * G))
+
+
+def test_unbaked_evaluation_equals_baked(setup):
+    """NP-Obj (per dof, no baking) and Obj (six coefficients) are the same function."""
+    pd, rs, target = setup
+    S = pd.times[-1]
+    obj = O.bake(pd, rs, target, alpha=2.0, beta=0.8, excess=False, gamma=0.05)
+    ub = O.unbaked(pd, rs, target, obj)
+    for seed in range(3):
+        sp = _wiggly_spline(S, 0.9 * S, seed=seed)
+        assert O.evaluate_unbaked(ub, sp) == pytest.approx(O.evaluate(obj, sp), rel=1e-9)

@@ -582,3 +582,113 @@ def frame_gradient(obj: BakedObjective, i, u, v):
     """(f, df/du, df/dv) of frame i with the baked weights (tests)."""
     return _frame_eval(int(i), float(u), float(v), obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc,
                        obj.cache, obj.alpha, obj.delta)
+
+
+# ------------------------------------------------------------------------------------------------
+# Without baking (Fig. 12's NP-Obj): per-dof torques at every sample, for comparison only
+# ------------------------------------------------------------------------------------------------
+
+@dataclass
+class UnbakedObjective:
+    """The same objective as :class:`BakedObjective`, kept per degree of freedom: at every sample
+    lambda = L0 + Lu u + Lv v on the fan wedge, tau = a u + b v + c - N lambda for every actuated row."""
+
+    baked: BakedObjective
+    a: np.ndarray  # (n, nr) actuated rows
+    b: np.ndarray
+    c: np.ndarray
+    tgt: np.ndarray
+    N: np.ndarray  # (n, nr, K)
+    lam_aff: np.ndarray  # (P, 3, K) per wedge: L0, Lu, Lv
+    scale: float  # beta / tau_scale^2
+
+
+def unbaked(pd, regions, target, obj: BakedObjective) -> UnbakedObjective:
+    """Per-wedge affine contact models and the per-dof dynamics for :func:`evaluate_unbaked`."""
+    from .forces import fan_model
+
+    act = actuated_mask(pd)
+    K = np.asarray(pd.N).shape[2]
+    lam_aff = np.zeros((len(obj.px), 3, K))
+    for i in range(regions.n_frames):
+        fan = fan_model(regions, i)
+        p0, p1 = regions.offsets[i], regions.offsets[i + 1]
+        for k in range(p1 - p0):
+            L0, Lu, Lv = fan.affine(k if not fan.degenerate else -1)
+            lam_aff[p0 + k] = (L0, Lu, Lv)
+    arr = lambda x: np.ascontiguousarray(np.asarray(x, dtype=float)[:, act])  # noqa: E731
+    return UnbakedObjective(obj, arr(pd.a), arr(pd.b), arr(pd.c), arr(target),
+                            np.ascontiguousarray(np.asarray(pd.N, dtype=float)[:, act, :]), lam_aff,
+                            obj.beta / obj.tau_scale ** 2)
+
+
+@njit(cache=True, fastmath=True)
+def _evaluate_unbaked(c, T, breaks, Msp, s, omega, fi, poff, px, py, cen, scl, mode, wc, cache, alpha, delta,
+                      gamma, a, b, cc, tgt, N, lam_aff, tscale):
+    n_span = len(breaks) - 1
+    Asp = np.empty((n_span, 4))
+    for m in range(n_span):
+        for r in range(4):
+            acc = 0.0
+            for l in range(4):
+                acc += Msp[m, r, l] * c[m + l]
+            Asp[m, r] = acc
+    nr = a.shape[1]
+    K = N.shape[2]
+    lam = np.empty(K)
+    total = 0.0
+    m = 0
+    x = 0.0
+    invT = 1.0 / T
+    for jj in range(len(s)):
+        sj = s[jj]
+        while m + 1 < n_span and sj >= Asp[m + 1, 0]:
+            m += 1
+            x = 0.0
+        h = breaks[m + 1] - breaks[m]
+        a0, a1, a2, a3 = Asp[m, 0], Asp[m, 1], Asp[m, 2], Asp[m, 3]
+        lo, hi = 0.0, h
+        for _ in range(60):
+            fx = a0 + x * (a1 + x * (a2 + x * a3)) - sj
+            if abs(fx) <= 1e-13 * (1.0 + sj):
+                break
+            if fx > 0:
+                hi = x
+            else:
+                lo = x
+            d = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
+            xn = x - fx / d if d > 0 else 0.5 * (lo + hi)
+            if xn <= lo or xn >= hi:
+                xn = 0.5 * (lo + hi)
+            x = xn
+        pd = (a1 + x * (2.0 * a2 + 3.0 * a3 * x)) * invT
+        u = (2.0 * a2 + 6.0 * a3 * x) * invT * invT
+        v = pd * pd
+        i = fi[jj]
+        # distance term and wedge from the baked geometry (alpha only), torque term per dof
+        fdist, _, _ = _frame_eval(i, u, v, poff, px, py, cen, scl, mode, wc, cache, alpha, delta)
+        p0 = poff[i]
+        kw = p0 + (cache[i] if mode[i] == 0 else 0)
+        for q in range(K):
+            lam[q] = lam_aff[kw, 0, q] + lam_aff[kw, 1, q] * u + lam_aff[kw, 2, q] * v
+        err = 0.0
+        for r in range(nr):
+            tau = a[i, r] * u + b[i, r] * v + cc[i, r] - tgt[i, r]
+            for q in range(K):
+                tau -= N[i, r, q] * lam[q]
+            err += tau * tau
+        wk = wc[kw]
+        g = wk[0] * v * v + wk[1] * u * u + wk[2] * u * v + wk[3] * v + wk[4] * u + wk[5]
+        f = fdist - g + tscale * err  # _frame_eval added the baked torque term: replace it
+        total += omega[jj] * (f / pd + gamma * (pd + 1.0 / pd - 2.0))
+    return total
+
+
+def evaluate_unbaked(u_obj: UnbakedObjective, spline, w=None) -> float:
+    """The objective without baking (value only; the excess floor is not subtracted)."""
+    o = u_obj.baked
+    w = spline.w if w is None else w
+    return float(_evaluate_unbaked(spline.coefficients(w), spline.duration_of(w), spline.breaks,
+                                   spline.span_matrices, o.s, o.omega, o.fi, o.poff, o.px, o.py, o.cen, o.scale,
+                                   o.mode, o.wc, o.cache, o.alpha, o.delta, o.gamma, u_obj.a, u_obj.b, u_obj.c,
+                                   u_obj.tgt, u_obj.N, u_obj.lam_aff, u_obj.scale))
