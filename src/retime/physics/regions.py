@@ -291,6 +291,137 @@ def _dedupe_kernel(P, eps):
 # ------------------------------------------------------------------------------------------------
 
 @njit(cache=True)
+def _phase2(A, zl, zu, basic, zval, max_iter):
+    """Primal simplex for "maximize x1" from a feasible basis whose nonbasic variables may sit
+    strictly between their bounds (the centre LP's basis once (u, v) are released): such variables
+    enter in whichever direction improves, and are finally pushed to a bound, so that the returned
+    basis is a proper vertex basis (the walk's starting point). Returns (basic, at_upper, status)."""
+    m, n = A.shape
+    nt = n + m
+    M = np.zeros((m, nt))
+    M[:, :n] = A
+    for r in range(m):
+        M[r, n + r] = -1.0
+    isbasic = np.zeros(nt, dtype=np.bool_)
+    pos = -np.ones(nt, dtype=np.int64)
+    for r in range(m):
+        isbasic[basic[r]] = True
+        pos[basic[r]] = r
+    B = np.empty((m, m))
+    for r in range(m):
+        B[:, r] = M[:, basic[r]]
+    Binv = np.linalg.inv(B)
+    z = zval.copy()
+    rhs = np.zeros(m)
+    col = np.zeros(m)
+    y = np.zeros(m)
+    scale = 1.0
+    for j in range(nt):
+        for r in range(m):
+            scale = max(scale, abs(M[r, j]))
+    status = 1
+    for it in range(max_iter):
+        for r in range(m):
+            rhs[r] = 0.0
+        for j in range(nt):
+            if not isbasic[j] and z[j] != 0.0:
+                for r in range(m):
+                    rhs[r] -= M[r, j] * z[j]
+        for r in range(m):
+            acc = 0.0
+            for q in range(m):
+                acc += Binv[r, q] * rhs[q]
+            z[basic[r]] = acc
+        for r in range(m):
+            y[r] = -Binv[pos[1], r] if isbasic[1] else 0.0
+        jin = -1
+        best = 1e-9
+        dirn = 0.0
+        for j in range(nt):
+            if isbasic[j] or zu[j] - zl[j] <= 0.0:
+                continue
+            dot = 0.0
+            for r in range(m):
+                if M[r, j] != 0.0:
+                    dot += y[r] * M[r, j]
+            d = (-1.0 if j == 1 else 0.0) - dot
+            atl = z[j] <= zl[j]
+            atu = z[j] >= zu[j]
+            if d < -best and not atu:
+                best, jin, dirn = -d, j, 1.0
+            elif d > best and not atl:
+                best, jin, dirn = d, j, -1.0
+        if jin < 0:
+            for j in range(nt):  # optimal: push the remaining interior nonbasics to a bound
+                if not isbasic[j] and zl[j] < z[j] < zu[j]:
+                    jin, dirn = j, 1.0
+                    break
+            if jin < 0:
+                status = 0
+                break
+        for r in range(m):
+            acc = 0.0
+            for q in range(m):
+                acc += Binv[r, q] * M[q, jin]
+            col[r] = acc
+        tmax = (zu[jin] - z[jin]) if dirn > 0 else (z[jin] - zl[jin])
+        leave = -1
+        leave_up = False
+        for r in range(m):
+            al = -dirn * col[r]
+            if abs(al) <= 1e-11:
+                continue
+            j = basic[r]
+            if al > 0.0:
+                if zu[j] >= _INF * 0.5:
+                    continue
+                t = (zu[j] - z[j]) / al
+                tu = True
+            else:
+                if zl[j] <= -_INF * 0.5:
+                    continue
+                t = (zl[j] - z[j]) / al
+                tu = False
+            if t < 0.0:
+                t = 0.0
+            if t < tmax:
+                tmax, leave, leave_up = t, r, tu
+        if tmax >= _INF * 0.5:
+            status = 2
+            break
+        z[jin] += dirn * tmax
+        if leave < 0:
+            z[jin] = zu[jin] if dirn > 0 else zl[jin]
+            continue
+        jout = basic[leave]
+        z[jout] = zu[jout] if leave_up else zl[jout]
+        piv = col[leave]
+        basic[leave] = jin
+        isbasic[jin] = True
+        isbasic[jout] = False
+        pos[jin] = leave
+        pos[jout] = -1
+        if abs(piv) < 1e-9 * scale or it % 25 == 24:
+            for r in range(m):
+                B[:, r] = M[:, basic[r]]
+            Binv = np.linalg.inv(B)
+        else:
+            for q in range(m):
+                Binv[leave, q] /= piv
+            for r in range(m):
+                if r != leave:
+                    f = col[r]
+                    if f != 0.0:
+                        for q in range(m):
+                            Binv[r, q] -= f * Binv[leave, q]
+    up = np.zeros(nt, dtype=np.bool_)
+    for j in range(nt):
+        if not isbasic[j] and zu[j] > zl[j] and z[j] >= zu[j]:
+            up[j] = True
+    return basic, up, status
+
+
+@njit(cache=True)
 def _walk(A, zl, zu, basic, atupper, theta0, max_iter):
     """Trace the projection of {x : zl_x <= x <= zu_x, zl_s <= A x <= zu_s} onto (x0, x1).
 
@@ -552,6 +683,7 @@ class FrameLP:
         if prev is not None:
             self.h.setBasis(prev)
         self.n_solves = 0
+        self.center_state = None
         self._idx2 = np.array([0, 1], dtype=np.int32)
         self._kOptimal = highspy.HighsModelStatus.kOptimal
 
@@ -599,7 +731,15 @@ class FrameLP:
         cost[2:] = cost_lam
         h.changeColsCost(n, np.arange(n, dtype=np.int32), cost)
         ok = self._run()
-        x = np.asarray(h.getSolution().col_value) if ok else None
+        x = None
+        self.center_state = None
+        if ok:
+            sol = h.getSolution()
+            x = np.asarray(sol.col_value)
+            _POOL[("basis", self.m, self.n)] = h.getBasis()
+            basic, _ = self.basis()
+            if len(basic) == self.m:
+                self.center_state = (basic, np.concatenate((x, np.asarray(sol.row_value))))
         h.changeColsBounds(2, self._idx2, self.col_lo[:2], self.col_hi[:2])
         h.changeColsCost(n, np.arange(n, dtype=np.int32), np.zeros(n))
         return None if x is None else x[2:]
@@ -881,14 +1021,28 @@ def _polygon(a, b, c, N, lo, hi, rho, act, rows, other, opts, Kall, eps, lp=None
         if lp is None:
             lp = _frame_lp(a, b, c, N, lo, hi, rho, act, rows, opts)
         before = lp.n_solves
-        x0 = lp.maximize(0.0, 1.0)
         P = L = None
-        if x0 is not None:
-            X, piv = _trace(lp, opts, x0)
-            if X is not None:
-                P = X[:, :2].copy()
-                L = np.zeros((len(X), Kall))
-                L[:, act] = np.maximum(X[:, 2:], 0.0)
+        X = None
+        if opts.method == "parametric" and lp.center_state is not None:
+            # start from the centre LP's basis: phase 2 to "max v" and the walk, all without HiGHS
+            basic, zval = lp.center_state
+            zl = np.concatenate((lp.col_lo, lp.row_lo))
+            zu = np.concatenate((lp.col_hi, lp.row_hi))
+            zval = np.clip(zval, zl, zu)
+            basic, up, st = _phase2(lp.A, zl, zu, basic.copy(), zval, 500)
+            if st == 0:
+                V, Xw, status, piv = _walk(lp.A, zl, zu, basic, up, 0.5 * math.pi, 2000)
+                if status == 0 and len(Xw) >= 1:
+                    X = Xw
+        x0 = None
+        if X is None:
+            x0 = lp.maximize(0.0, 1.0)
+            if x0 is not None:
+                X, piv = _trace(lp, opts, x0)
+        if X is not None:
+            P = X[:, :2].copy()
+            L = np.zeros((len(X), Kall))
+            L[:, act] = np.maximum(X[:, 2:], 0.0)
         n_lp += lp.n_solves - before
         if P is None:
             return None, None, lp, n_lp, piv
@@ -1113,7 +1267,7 @@ def compute_regions(pd, options: RegionOptions | None = None, reference=None, fr
         times=np.asarray(pd.times, dtype=float)[idx],
         offsets=offsets,
         verts=np.concatenate([r.verts for r in results]).reshape(-1, 2),
-        lam=np.concatenate([r.lam for r in results]).reshape(-1, K),
+        lam=np.concatenate([r.lam for r in results]).reshape(int(offsets[-1]), K),
         center=np.array([r.center for r in results]).reshape(n, 2),
         center_lam=np.array([r.center_lam for r in results]).reshape(n, K),
         lo=np.array([r.lo for r in results]),
