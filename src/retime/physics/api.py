@@ -161,7 +161,7 @@ def physics_warp(motion, duration=None, scale=None, gravity=STANDARD_GRAVITY, ma
     problem = make_problem(obj, S, duration, keytimes, knot_spacing)
     session = RetimingSession(problem, method=method, fps=fps)
     t0 = time.perf_counter()
-    info = session.reconverge(max_iter=max_iter)
+    info = session.reconverge(max_iter=max_iter, tol=1e-9)
     timings["optimize"] = time.perf_counter() - t0
     spline = session.spline
     if spline.free and not problem.keytimes:

@@ -36,7 +36,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from ..errors import RetimeError
 
@@ -439,10 +439,11 @@ def _frame_eval(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache, alpha, del
                             break
                     else:
                         break
-    w = wc[p0 + k] if md == 0 else wc[p0]
-    g = w[0] * v0 * v0 + w[1] * u0 * u0 + w[2] * u0 * v0 + w[3] * v0 + w[4] * u0 + w[5]
-    gu = 2.0 * w[1] * u0 + w[2] * v0 + w[4]
-    gv = 2.0 * w[0] * v0 + w[2] * u0 + w[3]
+    kw = p0 + k if md == 0 else p0
+    w0, w1, w2, w3, w4, w5 = wc[kw, 0], wc[kw, 1], wc[kw, 2], wc[kw, 3], wc[kw, 4], wc[kw, 5]
+    g = w0 * v0 * v0 + w1 * u0 * u0 + w2 * u0 * v0 + w3 * v0 + w4 * u0 + w5
+    gu = 2.0 * w1 * u0 + w2 * v0 + w4
+    gv = 2.0 * w0 * v0 + w2 * u0 + w3
     du, dv = u - qx, v - qy
     d2 = du * du + dv * dv
     if delta <= 0.0:
@@ -453,11 +454,7 @@ def _frame_eval(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache, alpha, del
 
 
 @njit(cache=True, fastmath=True)
-def _evaluate(c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode, wc, cache, alpha, delta,
-              gamma, want_grad, gc):
-    """Objective (and gradient w.r.t. c and T when want_grad) of the spline with coefficients c."""
-    n_span = len(breaks) - 1
-    # power coefficients of each span
+def _span_poly(c, Msp, n_span):
     Asp = np.empty((n_span, 4))
     for m in range(n_span):
         for r in range(4):
@@ -465,19 +462,31 @@ def _evaluate(c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mod
             for l in range(4):
                 acc += Msp[m, r, l] * c[m + l]
             Asp[m, r] = acc
-    if want_grad:
-        for k in range(len(gc)):
-            gc[k] = 0.0
+    return Asp
+
+
+@njit(cache=True, fastmath=True)
+def _chunk(j0, j1, Asp, T, S, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode, wc, cache, alpha,
+           delta, gamma, want_grad, gc):
+    """Samples j0..j1-1 of the objective (see _evaluate); gradient added into gc."""
+    n_span = len(breaks) - 1
     gT = 0.0
     total = 0.0
+    # first span holding s[j0]
     m = 0
+    lo_, hi_ = 0, n_span - 1
+    while lo_ < hi_:
+        mid = (lo_ + hi_ + 1) // 2
+        if s[j0] >= Asp[mid, 0]:
+            lo_ = mid
+        else:
+            hi_ = mid - 1
+    m = lo_
     x = 0.0
-    S = c[len(c) - 1]
     invT = 1.0 / T
-    ns = len(s)
-    P1 = 1.0
-    s_prev = s[0]
-    for jj in range(ns):
+    P1 = 0.0
+    s_prev = s[j0]
+    for jj in range(j0, j1):
         sj = s[jj]
         while m + 1 < n_span and sj >= Asp[m + 1, 0]:
             m += 1
@@ -486,27 +495,35 @@ def _evaluate(c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mod
             s_prev = Asp[m, 0]
         h = breaks[m + 1] - breaks[m]
         a0, a1, a2, a3 = Asp[m, 0], Asp[m, 1], Asp[m, 2], Asp[m, 3]
-        # predictor from the previous sample, then safeguarded Newton on [0, h]
+        # predictor from the previous sample, two Newton steps; bisection only if that fails
         if P1 > 0.0:
             x += (sj - s_prev) / P1
-        lo, hi = 0.0, h
-        if x < lo or x > hi:
+        ok = False
+        if 0.0 <= x <= h:
+            for _ in range(2):
+                d = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
+                if d <= 0.0:
+                    break
+                x -= (a0 + x * (a1 + x * (a2 + x * a3)) - sj) / d
+            ok = 0.0 <= x <= h and abs(a0 + x * (a1 + x * (a2 + x * a3)) - sj) <= 1e-12 * (1.0 + S)
+        if not ok:
+            lo, hi = 0.0, h
             x = 0.5 * h
-        for _ in range(60):
-            fx = a0 + x * (a1 + x * (a2 + x * a3)) - sj
-            if abs(fx) <= 1e-13 * (1.0 + S):
-                break
-            if fx > 0:
-                hi = x
-            else:
-                lo = x
-            d = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
-            xn = x - fx / d if d > 0 else 0.5 * (lo + hi)
-            if xn <= lo or xn >= hi:
-                xn = 0.5 * (lo + hi)
-            if hi - lo <= 1e-16 * (1.0 + h):
-                break
-            x = xn
+            for _ in range(80):
+                fx = a0 + x * (a1 + x * (a2 + x * a3)) - sj
+                if abs(fx) <= 1e-13 * (1.0 + S):
+                    break
+                if fx > 0:
+                    hi = x
+                else:
+                    lo = x
+                d = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
+                xn = x - fx / d if d > 0 else 0.5 * (lo + hi)
+                if xn <= lo or xn >= hi:
+                    xn = 0.5 * (lo + hi)
+                if hi - lo <= 1e-16 * (1.0 + h):
+                    break
+                x = xn
         s_prev = sj
         P1 = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
         P2 = 2.0 * a2 + 6.0 * a3 * x
@@ -547,13 +564,59 @@ def _evaluate(c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mod
     return total, gT
 
 
+@njit(cache=True, fastmath=True)
+def _evaluate(c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode, wc, cache, alpha, delta,
+              gamma, want_grad, gc):
+    """Objective (and gradient w.r.t. c and T when want_grad) of the spline with coefficients c."""
+    Asp = _span_poly(c, Msp, len(breaks) - 1)
+    for k in range(len(gc)):
+        gc[k] = 0.0
+    return _chunk(0, len(s), Asp, T, c[len(c) - 1], breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode,
+                  wc, cache, alpha, delta, gamma, want_grad, gc)
+
+
+@njit(cache=True, fastmath=True, parallel=True)
+def _evaluate_par(nch, c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode, wc, cache, alpha, delta,
+                  gamma, want_grad, gc):
+    """_evaluate split into ``nch`` chunks of samples run on parallel threads."""
+    Asp = _span_poly(c, Msp, len(breaks) - 1)
+    ns = len(s)
+    tot = np.zeros(nch)
+    gts = np.zeros(nch)
+    gcs = np.zeros((nch, len(gc)))
+    S = c[len(c) - 1]
+    for k in prange(nch):
+        j0 = (ns * k) // nch
+        j1 = (ns * (k + 1)) // nch
+        tot[k], gts[k] = _chunk(j0, j1, Asp, T, S, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode,
+                                wc, cache, alpha, delta, gamma, want_grad, gcs[k])
+    for q in range(len(gc)):
+        acc = 0.0
+        for k in range(nch):
+            acc += gcs[k, q]
+        gc[q] = acc
+    return tot.sum(), gts.sum()
+
+
+PARALLEL_MIN_SAMPLES = 1200  # below this, thread start-up costs more than it saves
+
+
+def _kernel(obj):
+    import numba
+
+    nth = numba.get_num_threads()
+    if nth > 1 and len(obj.s) >= PARALLEL_MIN_SAMPLES:
+        return lambda *args: _evaluate_par(nth, *args)
+    return _evaluate
+
+
 def evaluate(obj: BakedObjective, spline, w=None, grad=False):
     """E(w) (and dE/dw)."""
     w = spline.w if w is None else w
     c = spline.coefficients(w)
     T = spline.duration_of(w)
     gc = np.zeros(len(c))
-    val, gT = _evaluate(c, T, spline.breaks, spline.span_matrices, obj.s, obj.omega, obj.fi, obj.fw,
+    val, gT = _kernel(obj)(c, T, spline.breaks, spline.span_matrices, obj.s, obj.omega, obj.fi, obj.fw,
                         obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc, obj.cache, obj.alpha,
                         obj.delta, obj.gamma, grad, gc)
     if not grad:
@@ -564,7 +627,7 @@ def evaluate(obj: BakedObjective, spline, w=None, grad=False):
 def evaluate_c(obj: BakedObjective, spline, c, T, grad=False):
     """E and (dE/dc, dE/dT) for raw coefficients (tests, benchmarks)."""
     gc = np.zeros(len(c))
-    val, gT = _evaluate(np.asarray(c, float), float(T), spline.breaks, spline.span_matrices, obj.s, obj.omega,
+    val, gT = _kernel(obj)(np.asarray(c, float), float(T), spline.breaks, spline.span_matrices, obj.s, obj.omega,
                         obj.fi, obj.fw, obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc,
                         obj.cache, obj.alpha, obj.delta, obj.gamma, grad, gc)
     return (float(val), gc, float(gT)) if grad else float(val)

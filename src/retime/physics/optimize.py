@@ -29,7 +29,10 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+import math
+
 import numpy as np
+from numba import njit
 from scipy.optimize import minimize
 
 from ..errors import RetimeError
@@ -141,60 +144,98 @@ def _scipy_lbfgsb_inner(fun, w0, bounds, max_iter, tol):
     return res.x, int(res.nit), res.success, str(res.message)
 
 
+@njit(cache=True)
+def _direction(g, free, S, Y, rho, count, head, xnorm):
+    """-H g by the L-BFGS two-loop recursion over the variables off their bounds (circular memory:
+    the newest pair at ``head - 1``)."""
+    n = len(g)
+    mem = S.shape[0]
+    q = np.empty(n)
+    for i in range(n):
+        q[i] = g[i] if free[i] else 0.0
+    alph = np.empty(mem)
+    for t in range(count):
+        k = (head - 1 - t) % mem
+        a_ = 0.0
+        for i in range(n):
+            a_ += S[k, i] * q[i]
+        a_ *= rho[k]
+        alph[k] = a_
+        for i in range(n):
+            q[i] -= a_ * Y[k, i]
+    if count > 0:
+        k = (head - 1) % mem
+        sy = 0.0
+        yy = 0.0
+        for i in range(n):
+            sy += S[k, i] * Y[k, i]
+            yy += Y[k, i] * Y[k, i]
+        for i in range(n):
+            q[i] *= sy / yy
+    else:
+        qn = math.sqrt(np.sum(q * q))
+        sc = min(1.0, 0.1 * xnorm) / max(qn, 1e-300)
+        for i in range(n):
+            q[i] *= sc
+    for t in range(count - 1, -1, -1):
+        k = (head - 1 - t) % mem
+        b_ = 0.0
+        for i in range(n):
+            b_ += Y[k, i] * q[i]
+        b_ *= rho[k]
+        for i in range(n):
+            q[i] += S[k, i] * (alph[k] - b_)
+    for i in range(n):
+        q[i] = -q[i] if free[i] else 0.0
+    return q
+
+
 def _lbfgs_inner(fun, w0, bounds, max_iter, tol, memory=12):
-    """Projected L-BFGS: the two-loop recursion on the variables off their bounds, a projected
-    backtracking (Armijo) line search, curvature pairs kept only when s.y > 0. The bounds here
-    (w_min <= w <= w_max) are rarely active, and this loop costs a few microseconds per iteration
-    where SciPy's L-BFGS-B wrapper spends a quarter of a millisecond, which is what an interactive
-    re-convergence of a few hundred iterations needs."""
+    """Projected L-BFGS: the two-loop recursion (compiled) on the variables off their bounds, a
+    projected backtracking (Armijo) line search, curvature pairs kept only when s.y > 0. The bounds
+    (w_min <= w <= w_max) are rarely active, and this loop costs microseconds per iteration where
+    SciPy's L-BFGS-B wrapper spends a quarter of a millisecond, which matters for an interactive
+    re-convergence of a hundred iterations."""
     lo = np.array([b[0] for b in bounds], dtype=float)
     hi = np.array([b[1] for b in bounds], dtype=float)
     x = np.clip(np.asarray(w0, dtype=float), lo, hi)
+    n = len(x)
     f, g = fun(x)
-    S, Y, rho = [], [], []
+    S = np.zeros((memory, n))
+    Y = np.zeros((memory, n))
+    rho = np.zeros(memory)
+    count = head = 0
     hist = [f]
     it = 0
     for it in range(1, max_iter + 1):
         free = ~(((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0)))
-        q = np.where(free, g, 0.0)
-        alph = []
-        for s_, y_, r_ in zip(reversed(S), reversed(Y), reversed(rho)):
-            a_ = r_ * (s_ @ q)
-            alph.append(a_)
-            q = q - a_ * y_
-        if S:
-            q = q * ((S[-1] @ Y[-1]) / (Y[-1] @ Y[-1]))
-        else:
-            q = q / max(np.linalg.norm(q), 1e-300) * min(1.0, 0.1 * np.linalg.norm(x))
-        for s_, y_, r_, a_ in zip(S, Y, rho, reversed(alph)):
-            q = q + s_ * (a_ - r_ * (y_ @ q))
-        d = -np.where(free, q, 0.0)
-        if g @ d >= 0:  # not a descent direction: restart from the projected gradient
-            S.clear(), Y.clear(), rho.clear()
+        d = _direction(g, free, S, Y, rho, count, head, float(np.linalg.norm(x)))
+        gd = float(g @ d)
+        if gd >= 0:  # not a descent direction: restart from the projected gradient
+            count = head = 0
             d = -np.where(free, g, 0.0)
             d *= min(1.0, 0.1 * np.linalg.norm(x)) / max(np.linalg.norm(d), 1e-300)
         step = 1.0
         for _ in range(40):
             xn = np.clip(x + step * d, lo, hi)
             fn, gn = fun(xn)
-            if fn <= f + 1e-4 * (g @ (xn - x)):
+            if fn <= f + 1e-4 * float(g @ (xn - x)):
                 break
             step *= 0.3
         else:
             return x, it, True, "line search cannot improve"
         s_ = xn - x
         y_ = gn - g
-        sy = s_ @ y_
+        sy = float(s_ @ y_)
         if sy > 1e-12 * np.linalg.norm(s_) * np.linalg.norm(y_):
-            S.append(s_), Y.append(y_), rho.append(1.0 / sy)
-            if len(S) > memory:
-                S.pop(0), Y.pop(0), rho.pop(0)
+            S[head], Y[head], rho[head] = s_, y_, 1.0 / sy
+            head = (head + 1) % memory
+            count = min(count + 1, memory)
         hist.append(fn)
         # converged when the last 10 iterations together gained less than 10 * tol (relative)
         done = len(hist) > 10 and hist[-11] - fn <= 10 * tol * max(1.0, abs(fn))
         x, f, g = xn, fn, gn
-        pg = np.where(free, g, 0.0)
-        if done or np.max(np.abs(pg)) <= 1e-12:
+        if done or np.max(np.abs(np.where(free, g, 0.0))) <= 1e-12:
             return x, it, True, "converged"
     return x, it, False, "iteration limit"
 
@@ -438,7 +479,10 @@ class RetimingSession:
     def _rebake_spline(self):
         self.problem.spline.w = np.clip(self.problem.spline.w, self.problem.w_min, self.problem.w_max)
 
-    def reconverge(self, max_iter=300, tol=1e-9, max_seconds=None) -> SolveInfo:
+    def reconverge(self, max_iter=2000, tol=1e-6, max_seconds=None) -> SolveInfo:
+        """Re-optimize from the current curve. The default ``tol`` (relative objective gain over ten
+        iterations) suits interaction: on 16_16 the curve then differs from the fully converged one by
+        less than a millisecond of source time."""
         w, info = solve(self.problem, self.spline.w, method=self.method, max_iter=max_iter, tol=tol,
                         max_seconds=max_seconds)
         self.spline.w = w
