@@ -661,6 +661,23 @@ def _highs_lp(A, col_lo, col_hi, row_lo, row_hi, cost=None):
     return lp
 
 
+def _pass_lp(h, A, col_lo, col_hi, row_lo, row_hi, cost=None):
+    """passModel from raw arrays (a quarter of the time of building a HighsLp object)."""
+    import highspy
+
+    m, n = A.shape
+    At = np.asarray(A, dtype=float).T
+    nz = At != 0.0
+    start = np.concatenate(([0], np.cumsum(nz.sum(axis=1)))).astype(np.int32)
+    index = np.nonzero(nz)[1].astype(np.int32)
+    value = np.ascontiguousarray(At[nz])
+    # HiGHS reads any bound beyond 1e20 as infinite, so the 1e30 used here passes as it is
+    st = h.passModel(n, m, len(value), 1, 1, 0.0, np.zeros(n) if cost is None else np.asarray(cost, dtype=float),
+                     col_lo, col_hi, row_lo, row_hi, start, index, value, np.zeros(n, dtype=np.int32))
+    if st == highspy.HighsStatus.kError:  # fall back to the model object
+        h.passModel(_highs_lp(A, col_lo, col_hi, row_lo, row_hi, cost))
+
+
 class FrameLP:
     """One frame's LP in (u, v, lam_active): a HiGHS model kept for the frame; only costs (and, for
     the centre point, the (u, v) bounds) change between solves."""
@@ -678,7 +695,7 @@ class FrameLP:
         self.row_lo = np.asarray(row_lo, dtype=float)
         self.row_hi = np.asarray(row_hi, dtype=float)
         self.h = _pooled_highs("frame")
-        self.h.passModel(_highs_lp(self.A, self.col_lo, self.col_hi, self.row_lo, self.row_hi))
+        _pass_lp(self.h, self.A, self.col_lo, self.col_hi, self.row_lo, self.row_hi)
         prev = _POOL.get(("basis", m, n))
         if prev is not None:
             self.h.setBasis(prev)
@@ -713,13 +730,16 @@ class FrameLP:
         return np.asarray(self.h.getSolution().col_value)
 
     def basis(self):
-        """The optimal basis as (basic indices over (cols, rows), at-upper flags)."""
-        import highspy
-
-        b = self.h.getBasis()
-        st = np.array([x.value for x in b.col_status] + [x.value for x in b.row_status], dtype=np.int64)
-        basic = np.flatnonzero(st == highspy.HighsBasisStatus.kBasic.value)
-        up = st == highspy.HighsBasisStatus.kUpper.value
+        """The optimal basis as (basic indices over (cols, rows), at-upper flags of the nonbasic)."""
+        _, bv = self.h.getBasicVariables()
+        bv = np.asarray(bv, dtype=np.int64)
+        basic = np.where(bv >= 0, bv, self.n - bv - 1)
+        sol = self.h.getSolution()
+        z = np.concatenate((np.asarray(sol.col_value), np.asarray(sol.row_value)))
+        zu = np.concatenate((self.col_hi, self.row_hi))
+        zl = np.concatenate((self.col_lo, self.row_lo))
+        up = (z >= zu - 1e-9 * (1.0 + np.abs(zu))) & (zu > zl) & (zu < _INF * 0.5)
+        up[basic] = False
         return basic, up
 
     def solve_at(self, u, v, cost_lam):
@@ -854,22 +874,32 @@ def _split(a, b, lo, hi, rho, rows):
 
 def _halfplanes(a, b, c, lo, hi, rho, rows):
     """Rows without contact forces as normalized half-planes (a, b, c): a u + b v <= c."""
-    cu, cv, lo_, hi_, src = _split(a, b, lo, hi, rho, rows)
-    lo2 = lo_ - c[src]
-    hi2 = hi_ - c[src]
-    nrm = np.hypot(cu, cv)
-    live = nrm > 1e-12 * (1.0 + np.minimum(np.abs(lo2), np.abs(hi2)))
-    safe = np.where(live, nrm, 1.0)
-    up = live & (hi2 < _INF * 0.5)
-    dn = live & (lo2 > -_INF * 0.5)
-    dead = ~live
-    H = np.concatenate((
-        np.stack((cu[up] / safe[up], cv[up] / safe[up], hi2[up] / safe[up]), axis=1),
-        np.stack((-cu[dn] / safe[dn], -cv[dn] / safe[dn], -lo2[dn] / safe[dn]), axis=1),
-        # a row the timing cannot change: feasible iff lo <= 0 <= hi
-        np.stack((np.zeros(dead.sum()), np.zeros(dead.sum()), np.minimum(hi2[dead], -lo2[dead])), axis=1),
-    ))
-    return np.ascontiguousarray(H)
+    return _halfplanes_kernel(a, b, c, lo, hi, rho, np.asarray(rows, dtype=np.int64))
+
+
+@njit(cache=True)
+def _halfplanes_kernel(a, b, c, lo, hi, rho, rows):
+    out = np.empty((2 * len(rows) + 1, 3))
+    k = 0
+    for r in rows:
+        for side in range(2):  # upper: a u + (b - rho) v <= hi - c ; lower: -a u - (b + rho) v <= c - lo
+            if side == 0:
+                bound = hi[r] - c[r]
+                if hi[r] >= _INF * 0.5:
+                    continue
+                cu, cv = a[r], b[r] - rho[r]
+            else:
+                bound = c[r] - lo[r]
+                if lo[r] <= -_INF * 0.5:
+                    continue
+                cu, cv = -a[r], -(b[r] + rho[r])
+            nrm = math.hypot(cu, cv)
+            if nrm > 1e-12 * (1.0 + abs(bound)):
+                out[k, 0], out[k, 1], out[k, 2] = cu / nrm, cv / nrm, bound / nrm
+            else:  # a row the timing cannot change: feasible iff its bound is not negative
+                out[k, 0], out[k, 1], out[k, 2] = 0.0, 0.0, bound
+            k += 1
+    return out[:k].copy()
 
 
 def _residual_lp(a, b, c, N, lo, hi, rho, act, n_root, body_weight, opts, fix=None):
@@ -896,7 +926,7 @@ def _residual_lp(a, b, c, N, lo, hi, rho, act, n_root, body_weight, opts, fix=No
     cost = np.concatenate((np.zeros(2 + K), cost_row, cost_row))
     h = _pooled_highs("residual")
     h.setOptionValue("simplex_strategy", 1)
-    h.passModel(_highs_lp(A, col_lo, col_hi, lo_ - c[src], hi_ - c[src], cost))
+    _pass_lp(h, A, col_lo, col_hi, lo_ - c[src], hi_ - c[src], cost)
     h.run()
     if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:  # slacks are free: cannot happen
         raise RetimeError("internal: the relaxation LP failed")
