@@ -190,8 +190,13 @@ def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_f
     sx = np.repeat(scale[:, 0], cnt)
     sy = np.repeat(scale[:, 1], cnt)
     s, om, fi, fw = samples(regions.times, samples_per_frame, interp)
-    out = BakedObjective(np.asarray(regions.times, float), poff, px * sx, py * sy, cen * scale, scale, mode, wc,
-                         float(alpha),
+    # pack what one lookup touches together: per vertex (x, y, six coefficients), per frame (scale, centre)
+    V = np.empty((len(px), 8))
+    V[:, 0], V[:, 1], V[:, 2:] = px * sx, py * sy, wc
+    Fr = np.empty((len(poff) - 1, 4))
+    Fr[:, :2], Fr[:, 2:] = scale, cen * scale
+    out = BakedObjective(np.asarray(regions.times, float), poff, V[:, 0], V[:, 1], Fr[:, 2:], Fr[:, :2], mode,
+                         V[:, 2:], float(alpha),
                          float(beta), float(tau_scale), s, om, fi, fw,
                          np.zeros(len(poff) - 1, dtype=np.int64), float(gamma),
                          0.0 if penalty == "l2" else float(delta))
@@ -446,6 +451,8 @@ def _frame_eval(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache, alpha, del
     gv = 2.0 * w0 * v0 + w2 * u0 + w3
     du, dv = u - qx, v - qy
     d2 = du * du + dv * dv
+    if d2 == 0.0:  # inside the region: only the torque term
+        return g, gu, gv
     if delta <= 0.0:
         return alpha * d2 + g, 2.0 * alpha * du * su + gu, 2.0 * alpha * dv * sv + gv
     r = math.sqrt(d2 + delta * delta)

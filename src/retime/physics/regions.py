@@ -16,11 +16,12 @@ computed here per frame:
   ``Highs`` model per frame that keeps its basis; only the cost direction changes. Two ways of
   tracing the polygon:
 
-  - ``method="parametric"`` (default): one HiGHS solve gives an optimal basis for the direction
-    "maximize p'^2"; from it, a parametric (shadow-vertex) primal simplex rotates the cost direction
-    through 360 degrees, pivoting exactly at the angles where the basis stops being optimal. Every
-    pivot lands on the next vertex of the projection, so the polygon is exact (to floating point)
-    after one pivot per vertex. If the walk meets numerical trouble it falls back to ...
+  - ``method="parametric"`` (default): HiGHS solves the frame's centre LP (least contact force at the
+    original timing, sec. 3.4) -- the one HiGHS solve per frame; with its basis, a compiled phase-2
+    primal simplex reaches the vertex of largest p'^2, and a parametric (shadow-vertex) simplex rotates
+    the cost direction through 360 degrees from there, pivoting exactly at the angles where the basis
+    stops being optimal. Every non-degenerate pivot lands on the next vertex of the projection, so the
+    polygon is exact (to floating point). On numerical trouble it falls back to ...
   - ``method="highs"``: adaptive refinement with HiGHS alone (Fig. 4): maximize in the four axis
     directions, then along the outward normal of every edge found so far; an edge is final when the
     LP cannot push past it by more than ``tol``, so the polygon is exact to ``tol`` (it always lies
