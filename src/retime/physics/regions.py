@@ -39,10 +39,13 @@ residual (least weighted L1 over slack variables: 1 per newton of root force, 1 
 ``moment_arm`` of root moment, ``actuated_slack_cost`` times that beyond a torque limit, all per body
 weight = mass x 9.81 m/s^2) with which the **original timing (0, 1) under the original physics** is
 feasible (:func:`source_fit`; zero at frames that are physical as captured). The frame's rows are
-widened by that residual plus ``relax_pad`` (1% of the body weight) and the region is computed with
-them, for the original physics and for changed ones alike: a retiming is feasible at a frame when it
-needs no more residual root wrench than the captured motion itself did, plus 1% of body weight. With
-unchanged physics the original timing is therefore always feasible.
+widened by that residual times p'^2 (the captured motion's inconsistency comes from its twice
+differentiated accelerations and the estimated inertias, which scale with p'^2) plus ``relax_pad``
+(1% of the body weight), for the original physics and for changed ones alike: a retiming is feasible
+at a frame when it needs no more residual root wrench than the captured motion itself did at that
+speed. With unchanged physics the original timing is therefore always feasible. Besides, every
+frame's root rows may use a residual of ``allowance`` = 5% of the body weight under the current
+gravity -- the modelling error biomechanics accepts for residual forces of captured motion.
 
 If a region is still empty (changed physics can ask for more than the body can give), the smallest
 extra residual is found the same way over all timings in the box, added with the pad, and reported
