@@ -472,6 +472,39 @@ def _span_poly(c, Msp, n_span):
     return Asp
 
 
+@njit(cache=True, fastmath=True, inline="always")
+def _invert(a0, a1, a2, a3, sj, x, h, S):
+    """x in [0, h] with a0 + a1 x + a2 x^2 + a3 x^3 = sj (increasing cubic): two Newton steps from the
+    guess x, a safeguarded bisection-Newton only if they fail."""
+    ok = False
+    if 0.0 <= x <= h:
+        for _ in range(2):
+            d = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
+            if d <= 0.0:
+                break
+            x -= (a0 + x * (a1 + x * (a2 + x * a3)) - sj) / d
+        ok = 0.0 <= x <= h and abs(a0 + x * (a1 + x * (a2 + x * a3)) - sj) <= 1e-12 * (1.0 + S)
+    if not ok:
+        lo, hi = 0.0, h
+        x = 0.5 * h
+        for _ in range(80):
+            fx = a0 + x * (a1 + x * (a2 + x * a3)) - sj
+            if abs(fx) <= 1e-13 * (1.0 + S):
+                break
+            if fx > 0:
+                hi = x
+            else:
+                lo = x
+            d = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
+            xn = x - fx / d if d > 0 else 0.5 * (lo + hi)
+            if xn <= lo or xn >= hi:
+                xn = 0.5 * (lo + hi)
+            if hi - lo <= 1e-16 * (1.0 + h):
+                break
+            x = xn
+    return x
+
+
 @njit(cache=True, fastmath=True)
 def _chunk(j0, j1, Asp, T, S, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode, wc, cache, alpha,
            delta, gamma, want_grad, gc):
@@ -505,32 +538,7 @@ def _chunk(j0, j1, Asp, T, S, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, 
         # predictor from the previous sample, two Newton steps; bisection only if that fails
         if P1 > 0.0:
             x += (sj - s_prev) / P1
-        ok = False
-        if 0.0 <= x <= h:
-            for _ in range(2):
-                d = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
-                if d <= 0.0:
-                    break
-                x -= (a0 + x * (a1 + x * (a2 + x * a3)) - sj) / d
-            ok = 0.0 <= x <= h and abs(a0 + x * (a1 + x * (a2 + x * a3)) - sj) <= 1e-12 * (1.0 + S)
-        if not ok:
-            lo, hi = 0.0, h
-            x = 0.5 * h
-            for _ in range(80):
-                fx = a0 + x * (a1 + x * (a2 + x * a3)) - sj
-                if abs(fx) <= 1e-13 * (1.0 + S):
-                    break
-                if fx > 0:
-                    hi = x
-                else:
-                    lo = x
-                d = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
-                xn = x - fx / d if d > 0 else 0.5 * (lo + hi)
-                if xn <= lo or xn >= hi:
-                    xn = 0.5 * (lo + hi)
-                if hi - lo <= 1e-16 * (1.0 + h):
-                    break
-                x = xn
+        x = _invert(a0, a1, a2, a3, sj, x, h, S)
         s_prev = sj
         P1 = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
         P2 = 2.0 * a2 + 6.0 * a3 * x
@@ -696,13 +704,7 @@ def unbaked(pd, regions, target, obj: BakedObjective) -> UnbakedObjective:
 def _evaluate_unbaked(c, T, breaks, Msp, s, omega, fi, poff, px, py, cen, scl, mode, wc, cache, alpha, delta,
                       gamma, a, b, cc, tgt, N, lam_aff, tscale):
     n_span = len(breaks) - 1
-    Asp = np.empty((n_span, 4))
-    for m in range(n_span):
-        for r in range(4):
-            acc = 0.0
-            for l in range(4):
-                acc += Msp[m, r, l] * c[m + l]
-            Asp[m, r] = acc
+    Asp = _span_poly(c, Msp, n_span)
     nr = a.shape[1]
     K = N.shape[2]
     lam = np.empty(K)
@@ -717,20 +719,7 @@ def _evaluate_unbaked(c, T, breaks, Msp, s, omega, fi, poff, px, py, cen, scl, m
             x = 0.0
         h = breaks[m + 1] - breaks[m]
         a0, a1, a2, a3 = Asp[m, 0], Asp[m, 1], Asp[m, 2], Asp[m, 3]
-        lo, hi = 0.0, h
-        for _ in range(60):
-            fx = a0 + x * (a1 + x * (a2 + x * a3)) - sj
-            if abs(fx) <= 1e-13 * (1.0 + sj):
-                break
-            if fx > 0:
-                hi = x
-            else:
-                lo = x
-            d = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
-            xn = x - fx / d if d > 0 else 0.5 * (lo + hi)
-            if xn <= lo or xn >= hi:
-                xn = 0.5 * (lo + hi)
-            x = xn
+        x = _invert(a0, a1, a2, a3, sj, min(max(x, 0.0), h), h, sj)
         pd = (a1 + x * (2.0 * a2 + 3.0 * a3 * x)) * invT
         u = (2.0 * a2 + 6.0 * a3 * x) * invT * invT
         v = pd * pd

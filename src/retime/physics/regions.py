@@ -295,11 +295,8 @@ def _dedupe_kernel(P, eps):
 # ------------------------------------------------------------------------------------------------
 
 @njit(cache=True)
-def _phase2(A, zl, zu, basic, zval, max_iter):
-    """Primal simplex for "maximize x1" from a feasible basis whose nonbasic variables may sit
-    strictly between their bounds (the centre LP's basis once (u, v) are released): such variables
-    enter in whichever direction improves, and are finally pushed to a bound, so that the returned
-    basis is a proper vertex basis (the walk's starting point). Returns (basic, at_upper, status)."""
+def _standard_form(A, basic):
+    """M = [A, -I] (variables x then row activities) and the basis bookkeeping."""
     m, n = A.shape
     nt = n + m
     M = np.zeros((m, nt))
@@ -311,6 +308,78 @@ def _phase2(A, zl, zu, basic, zval, max_iter):
     for r in range(m):
         isbasic[basic[r]] = True
         pos[basic[r]] = r
+    return M, isbasic, pos
+
+
+@njit(cache=True)
+def _ratio_test(col, dirn, basic, z, zl, zu, tmax):
+    """Bounded primal ratio test: how far the entering variable may move (``dirn`` = +-1, its own
+    range ``tmax``) before a basic variable hits a bound; ties go to the larger pivot.
+    Returns (step, leaving row or -1, leaves at its upper bound)."""
+    leave = -1
+    leave_up = False
+    bestpiv = 0.0
+    for r in range(len(col)):
+        al = -dirn * col[r]  # dz_B / dt
+        if abs(al) <= 1e-11:
+            continue
+        j = basic[r]
+        if al > 0.0:
+            if zu[j] >= _INF * 0.5:
+                continue
+            t = (zu[j] - z[j]) / al
+            tu = True
+        else:
+            if zl[j] <= -_INF * 0.5:
+                continue
+            t = (zl[j] - z[j]) / al
+            tu = False
+        if t < 0.0:
+            t = 0.0
+        if t < tmax - 1e-12 * (1.0 + tmax) or (abs(t - tmax) <= 1e-12 * (1.0 + tmax) and abs(al) > bestpiv):
+            tmax, leave, leave_up, bestpiv = t, r, tu, abs(al)
+    return tmax, leave, leave_up
+
+
+@njit(cache=True)
+def _entering_column(Binv, A, jin, col):
+    """col = B^-1 M_jin for M = [A, -I]."""
+    m, n = A.shape
+    if jin < n:
+        for r in range(m):
+            acc = 0.0
+            for q in range(m):
+                acc += Binv[r, q] * A[q, jin]
+            col[r] = acc
+    else:
+        for r in range(m):
+            col[r] = -Binv[r, jin - n]
+
+
+@njit(cache=True)
+def _eta_update(Binv, col, leave):
+    """Binv after the basic variable of row ``leave`` is replaced by the column with B^-1 a = col."""
+    m = len(col)
+    piv = col[leave]
+    for q in range(m):
+        Binv[leave, q] /= piv
+    for r in range(m):
+        if r != leave:
+            f = col[r]
+            if f != 0.0:
+                for q in range(m):
+                    Binv[r, q] -= f * Binv[leave, q]
+
+
+@njit(cache=True)
+def _phase2(A, zl, zu, basic, zval, max_iter):
+    """Primal simplex for "maximize x1" from a feasible basis whose nonbasic variables may sit
+    strictly between their bounds (the centre LP's basis once (u, v) are released): such variables
+    enter in whichever direction improves, and are finally pushed to a bound, so that the returned
+    basis is a proper vertex basis (the walk's starting point). Returns (basic, at_upper, status)."""
+    m, n = A.shape
+    nt = n + m
+    M, isbasic, pos = _standard_form(A, basic)
     B = np.empty((m, m))
     for r in range(m):
         B[:, r] = M[:, basic[r]]
@@ -363,33 +432,9 @@ def _phase2(A, zl, zu, basic, zval, max_iter):
             if jin < 0:
                 status = 0
                 break
-        for r in range(m):
-            acc = 0.0
-            for q in range(m):
-                acc += Binv[r, q] * M[q, jin]
-            col[r] = acc
-        tmax = (zu[jin] - z[jin]) if dirn > 0 else (z[jin] - zl[jin])
-        leave = -1
-        leave_up = False
-        for r in range(m):
-            al = -dirn * col[r]
-            if abs(al) <= 1e-11:
-                continue
-            j = basic[r]
-            if al > 0.0:
-                if zu[j] >= _INF * 0.5:
-                    continue
-                t = (zu[j] - z[j]) / al
-                tu = True
-            else:
-                if zl[j] <= -_INF * 0.5:
-                    continue
-                t = (zl[j] - z[j]) / al
-                tu = False
-            if t < 0.0:
-                t = 0.0
-            if t < tmax:
-                tmax, leave, leave_up = t, r, tu
+        _entering_column(Binv, A, jin, col)
+        tmax, leave, leave_up = _ratio_test(col, dirn, basic, z, zl, zu,
+                                            (zu[jin] - z[jin]) if dirn > 0 else (z[jin] - zl[jin]))
         if tmax >= _INF * 0.5:
             status = 2
             break
@@ -410,14 +455,7 @@ def _phase2(A, zl, zu, basic, zval, max_iter):
                 B[:, r] = M[:, basic[r]]
             Binv = np.linalg.inv(B)
         else:
-            for q in range(m):
-                Binv[leave, q] /= piv
-            for r in range(m):
-                if r != leave:
-                    f = col[r]
-                    if f != 0.0:
-                        for q in range(m):
-                            Binv[r, q] -= f * Binv[leave, q]
+            _eta_update(Binv, col, leave)
     up = np.zeros(nt, dtype=np.bool_)
     for j in range(nt):
         if not isbasic[j] and zu[j] > zl[j] and z[j] >= zu[j]:
@@ -436,15 +474,7 @@ def _walk(A, zl, zu, basic, atupper, theta0, max_iter):
     the next vertex. Returns (verts (k, 2), xs (k, n), status, pivots); status 0 = ok."""
     m, n = A.shape
     nt = n + m
-    M = np.zeros((m, nt))
-    M[:, :n] = A
-    for r in range(m):
-        M[r, n + r] = -1.0
-    isbasic = np.zeros(nt, dtype=np.bool_)
-    pos = -np.ones(nt, dtype=np.int64)
-    for r in range(m):
-        isbasic[basic[r]] = True
-        pos[basic[r]] = r
+    M, isbasic, pos = _standard_form(A, basic)
     up = atupper.copy()
     out_v = np.empty((4 * max_iter + 8, 2))
     out_x = np.empty((4 * max_iter + 8, n))
@@ -544,41 +574,8 @@ def _walk(A, zl, zu, basic, atupper, theta0, max_iter):
         theta += best
         # ratio test: move the entering variable away from its bound
         dirn = -1.0 if up[jin] else 1.0
-        if jin < n:
-            for r in range(m):
-                acc = 0.0
-                for q in range(m):
-                    acc += Binv[r, q] * A[q, jin]
-                col[r] = acc
-        else:
-            for r in range(m):
-                col[r] = -Binv[r, jin - n]
-        tmax = zu[jin] - zl[jin]
-        leave = -1
-        leave_up = False
-        bestpiv = 0.0
-        for r in range(m):
-            al = -dirn * col[r]  # dz_B / dt
-            if abs(al) <= 1e-11:
-                continue
-            j = basic[r]
-            if al > 0.0:
-                if zu[j] >= _INF * 0.5:
-                    continue
-                t = (zu[j] - z[j]) / al
-                tu = True
-            else:
-                if zl[j] <= -_INF * 0.5:
-                    continue
-                t = (zl[j] - z[j]) / al
-                tu = False
-            if t < 0.0:
-                t = 0.0
-            if t < tmax - 1e-12 * (1.0 + tmax) or (abs(t - tmax) <= 1e-12 * (1.0 + tmax) and abs(al) > bestpiv):
-                tmax = t
-                leave = r
-                leave_up = tu
-                bestpiv = abs(al)
+        _entering_column(Binv, A, jin, col)
+        tmax, leave, leave_up = _ratio_test(col, dirn, basic, z, zl, zu, zu[jin] - zl[jin])
         if tmax >= _INF * 0.5:
             status = 2  # unbounded ray: cannot happen for a bounded projection
             break
@@ -602,14 +599,7 @@ def _walk(A, zl, zu, basic, atupper, theta0, max_iter):
             Binv = np.linalg.inv(B)
             since_refactor = 0
         else:
-            for q in range(m):
-                Binv[leave, q] /= piv
-            for r in range(m):
-                if r != leave:
-                    f = col[r]
-                    if f != 0.0:
-                        for q in range(m):
-                            Binv[r, q] -= f * Binv[leave, q]
+            _eta_update(Binv, col, leave)
             since_refactor += 1
     return out_v[:nout].copy(), out_x[:nout].copy(), status, it
 
