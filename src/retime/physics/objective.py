@@ -195,8 +195,9 @@ def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_f
     V[:, 0], V[:, 1], V[:, 2:] = px * sx, py * sy, wc
     Fr = np.empty((len(poff) - 1, 4))
     Fr[:, :2], Fr[:, 2:] = scale, cen * scale
-    out = BakedObjective(np.asarray(regions.times, float), poff, V[:, 0], V[:, 1], Fr[:, 2:], Fr[:, :2], mode,
-                         V[:, 2:], float(alpha),
+    C = np.ascontiguousarray
+    out = BakedObjective(np.asarray(regions.times, float), poff, C(V[:, 0]), C(V[:, 1]), C(Fr[:, 2:]), C(Fr[:, :2]),
+                         mode, C(V[:, 2:]), float(alpha),
                          float(beta), float(tau_scale), s, om, fi, fw,
                          np.zeros(len(poff) - 1, dtype=np.int64), float(gamma),
                          0.0 if penalty == "l2" else float(delta))
