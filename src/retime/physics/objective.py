@@ -614,7 +614,8 @@ def _evaluate_par(nch, c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, s
     return tot.sum(), gts.sum()
 
 
-PARALLEL_MIN_SAMPLES = 1200  # below this, thread start-up costs more than it saves
+PARALLEL_MIN_SAMPLES = 20000  # threads pay off only for long clips; on a shared 2-core machine a busy
+# core stalls every parallel call, which an interactive loop of short calls cannot afford
 
 
 def _kernel(obj):
