@@ -258,7 +258,7 @@ class PhysicsMethod(Method):
                   choices=(("match", "match the original torques"), ("minimize", "minimize torques"))),
             Param("mass_part", "Heavier / lighter part", "choice", "none", choices=tuple(parts)),
             Param("mass_factor", "Mass factor", "number", 1.0, 0.1, 10.0, 0.1, "×", help="that part's mass times this"),
-            Param("alpha", "Feasibility weight", "number", 100.0, 0.1, 10000.0, 1.0,
+            Param("alpha", "Feasibility weight", "number", 10.0, 0.1, 10000.0, 1.0,
                   help="α of Eq. 14 (torque matching has weight 1)"),
         )
 
@@ -279,7 +279,7 @@ class PhysicsMethod(Method):
 
     def _key(self, params):
         return (float(params.get("gravity", 9.81)), params.get("objective", "match"), params.get("mass_part", "none"),
-                float(params.get("mass_factor", 1.0)), float(params.get("alpha", 100.0)))
+                float(params.get("mass_factor", 1.0)), float(params.get("alpha", 10.0)))
 
     def _build(self, job, key):
         from ..physics.api import make_problem  # noqa: PLC0415
