@@ -5,7 +5,7 @@ import pytest
 from retime.data import bundled_path
 from retime.errors import FormatError, RetimeError
 from retime.motion import Skeleton, load_motion
-from retime.physics.body import (DE_LEVA, default_body, find_feet, read_body, world_frames, write_body)
+from retime.physics.body import (DE_LEVA, STRENGTH, default_body, find_feet, read_body, world_frames, write_body)
 from retime.physics.dynamics import dynamics_terms
 
 
@@ -96,6 +96,39 @@ ltibia = 150
     limits = terms.joint_torque_limits()
     assert np.allclose(limits["ltibia"], 150.0)
     assert np.all(limits["lfemur"] > 0)
+
+
+def test_default_torque_limits_are_clip_peaks_floored_by_strength(tmp_path, jump):
+    """limit = max(margin * peak |tau| + floor, strength of the joint's segment); strength_scale = 0
+    leaves the clip's own limits (the paper's rule), and a body file's strength_scale is used."""
+    clip = jump.frames(slice(0, 120))
+    body = default_body(clip.skeleton, motion=clip)
+    terms = dynamics_terms(clip, body=body)
+    tau_peak = np.abs(terms.tau_ref).max(axis=0)
+    limits = terms.joint_torque_limits()
+    strength = dict(zip(body.names, body.strength()))
+    assert strength["lfemur"] == pytest.approx(STRENGTH["thigh"] * body.total_mass / 70.0)
+    assert strength["lhand"] == pytest.approx(STRENGTH["hand"] * body.total_mass / 70.0)
+    assert strength["ltoes"] == pytest.approx(STRENGTH["toe"] * body.total_mass / 70.0)
+    for j, name in enumerate(terms.tree.names):
+        if name not in limits:
+            continue
+        k = terms.tree.vidx[j]
+        expected = np.maximum(1.5 * tau_peak[k:k + 3] + 2.0, strength[name])
+        assert np.allclose(limits[name], expected), name
+    assert np.allclose(limits["lhumerus"], strength["lhumerus"])  # a jump's shoulders: strength decides
+    path = tmp_path / "weak.toml"
+    path.write_text("strength_scale = 0\n", encoding="utf-8")
+    weak = read_body(path, clip.skeleton, motion=clip)
+    assert weak.strength_scale == 0.0 and not np.any(weak.strength())
+    terms0 = dynamics_terms(clip, body=weak)
+    for name, lim in terms0.joint_torque_limits().items():
+        j = terms0.tree.names.index(name)
+        k = terms0.tree.vidx[j]
+        assert np.allclose(lim, 1.5 * np.abs(terms0.tau_ref[:, k:k + 3]).max(axis=0) + 2.0), name
+    out = tmp_path / "again.toml"
+    write_body(weak, out)
+    assert read_body(out, clip.skeleton).strength_scale == 0.0
 
 
 @pytest.mark.parametrize("text, message", [

@@ -15,7 +15,8 @@ Defaults, and why (measured on CMU jumps 16_06, 16_03, 13_11, 118_26; see the te
   residual force (``metric = "residual"``, :func:`objective.residual_scales`). Eq. 14's squared
   distance (``penalty = "l2"``, ``metric = "plane"``) spreads an unavoidable violation (halving a
   jump) thinly over many frames; the exact penalty keeps it on the few frames where it costs the
-  least force, so most frames stay feasible (16_06 at half duration: 78% -> 94% of frames feasible).
+  least force, so most frames stay feasible (16_06 at half duration with clip-only torque limits:
+  78% -> 94% of frames feasible; 100% with the strength floor of :mod:`.body`).
 * ``beta = 0.1``: torques (normalized by the original's RMS torque) choose among physical timings;
   ``excess = True`` measures them from what any timing could reach (see :mod:`.objective`).
 * ``gamma = 0.03``: a weak pull of the playback speed towards 1 (``gamma * (p' + 1/p' - 2)`` per

@@ -29,7 +29,12 @@ Defaults (every value can be overridden by a TOML body file, see :func:`read_bod
   joint to the tip, 0.38 foot-lengths apart (foot length = heel to tip).
 * **Friction** 0.5; **torque limits** estimated from the original motion (see
   :mod:`retime.physics.dynamics`): ``torque_margin`` (1.5) times the largest |torque| of each joint
-  axis over the clip, plus ``torque_floor`` (2 N m).
+  axis over the clip, plus ``torque_floor`` (2 N m), but never below the joint's **strength**:
+  ``strength_scale`` (1) times :data:`STRENGTH` (N m for 70 kg, scaled by the body mass). McCann et
+  al. took their limits from the torques of *several* actions; one clip alone understates what its
+  performer can do at joints it barely used (a standing jump hardly loads the shoulders, yet played
+  twice as fast its arm swing needs four times the torque). ``strength_scale = 0`` gives the clip's
+  limits alone.
 """
 from __future__ import annotations
 
@@ -50,6 +55,13 @@ SOLE_PAD = 0.02
 FRICTION = 0.5
 TORQUE_MARGIN = 1.5
 TORQUE_FLOOR = 2.0
+# Peak joint torque (N m, about any axis) of a 70 kg adult, by the segment a joint moves: rounded
+# maximal voluntary torques of healthy adult men, e.g. Anderson, Madigan & Nussbaum 2007 (J. Biomech.
+# 40:3105; hip, knee, ankle) and Winter's Biomechanics (trunk, neck, arm). Deliberately modest: the
+# weaker direction of each joint.
+STRENGTH = {"pelvis": 150.0, "thigh": 150.0, "shank": 150.0, "foot": 100.0, "toe": 30.0, "trunk": 150.0,
+            "head": 40.0, "upperarm": 60.0, "forearm": 40.0, "hand": 10.0}
+STRENGTH_MASS = 70.0
 ZERO_BONE_RADIUS = 0.1
 
 # segment: (mass fraction per side or whole, COM fraction from the proximal joint,
@@ -101,6 +113,7 @@ class Body:
     friction: float = FRICTION
     torque_margin: float = TORQUE_MARGIN
     torque_floor: float = TORQUE_FLOOR
+    strength_scale: float = 1.0
     torque_limits: dict[str, np.ndarray] = field(default_factory=dict)  # joint -> (3,) N m, symmetric
     segments: dict[str, str] = field(default_factory=dict)  # joint -> de Leva segment (informational)
 
@@ -136,6 +149,17 @@ class Body:
         if arr.shape != out.shape or np.any(arr <= 0):
             raise RetimeError(f"mass factors must be {len(out)} positive numbers")
         return arr
+
+    def strength(self) -> np.ndarray:
+        """(J,) default strength (N m) of each joint: :data:`STRENGTH` of its segment, scaled by the
+        body mass and ``strength_scale``; 0 for a joint of unknown segment."""
+        out = np.zeros(len(self.names))
+        for j, name in enumerate(self.names):
+            kind = self.segments.get(name)
+            if kind == "foot" and TOE_RE.search(name):
+                kind = "toe"
+            out[j] = STRENGTH.get(kind, 0.0)
+        return out * self.strength_scale * self.total_mass / STRENGTH_MASS
 
     def tree(self, skeleton) -> TreeModel:
         """The rigid-body tree of this body on ``skeleton`` (see :func:`skeleton_tree`)."""
@@ -459,6 +483,7 @@ def write_body(body: Body, path, torque_limits=None, note: str = "") -> None:
         f"friction = {_fmt(body.friction)}",
         f"torque_margin = {_fmt(body.torque_margin)}  # default limits: margin * max |torque| of the motion + floor",
         f"torque_floor = {_fmt(body.torque_floor)}",
+        f"strength_scale = {_fmt(body.strength_scale)}  # default limits never fall below this times the strength table",
         "",
     ]
     for foot in body.feet:
@@ -511,7 +536,7 @@ def read_body(path, skeleton, motion=None, frames=None) -> Body:
         raise FormatError(path, "no such body file") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise FormatError(path, f"not a valid TOML body file: {e}") from None
-    known = {"mass", "friction", "torque_margin", "torque_floor", "feet", "segments", "torque_limits"}
+    known = {"mass", "friction", "torque_margin", "torque_floor", "strength_scale", "feet", "segments", "torque_limits"}
     for key in data:
         if key not in known:
             raise FormatError(path, f"unknown setting {key!r}; known: {', '.join(sorted(known))}")
@@ -559,7 +584,7 @@ def read_body(path, skeleton, motion=None, frames=None) -> Body:
                 if not isinstance(pts, list) or len(pts) != 2:
                     raise FormatError(path, f"[feet.{foot.side}] {key} must be two [x, y, z] corners")
                 setattr(foot, key, np.array([_vector(path, f"[feet.{foot.side}] {key}", p, 3) for p in pts]))
-    for key in ("friction", "torque_margin", "torque_floor"):
+    for key in ("friction", "torque_margin", "torque_floor", "strength_scale"):
         if key in data:
             setattr(body, key, _number(path, key, data[key], positive=key == "friction", nonneg=True))
     for name, v in (data.get("torque_limits") or {}).items():

@@ -316,11 +316,16 @@ def reference_forces(w, N, n_root, root_weight=ROOT_WEIGHT, ridge=RIDGE):
 
 
 def torque_limits(tree: TreeModel, body: Body | None, tau_ref, margin=None, floor=None) -> np.ndarray:
-    """Symmetric limits (nv,): the body's explicit ones, else margin * max |tau_ref| + floor."""
+    """Symmetric limits (nv,): the body's explicit ones, else margin * max |tau_ref| + floor, but at
+    least the joint's strength (:meth:`Body.strength`)."""
     margin = (body.torque_margin if body is not None else 1.5) if margin is None else margin
     floor = (body.torque_floor if body is not None else 2.0) if floor is None else floor
     hi = margin * np.abs(tau_ref).max(axis=0) + floor
     if body is not None:
+        strength = dict(zip(body.names, body.strength()))
+        for j, k in enumerate(tree.vidx):
+            if k >= 0 and int(tree.jtype[j]) == SPHERICAL:
+                hi[k:k + 3] = np.maximum(hi[k:k + 3], strength.get(tree.names[j], 0.0))
         for name, lim in body.torque_limits.items():
             j = tree.names.index(name)
             if tree.vidx[j] >= 0:
