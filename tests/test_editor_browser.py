@@ -224,7 +224,9 @@ def test_drag_latency(browser, server, method, capsys, shots):
     with capsys.disabled():
         print(f"\n[editor latency] {method}: {CLIP} ({frames} frames), {len(ms)} drag updates: input -> re-solved curve "
               f"on screen median {med:.0f} ms, p90 {p90:.0f} ms (server solve median {solve:.0f} ms; "
-              f"headless Chromium with software WebGL on {os.cpu_count()} cores)")
+              f"headless Chromium with software WebGL on {os.cpu_count()} cores; median queued "
+              f"{statistics.median(x['queued_ms'] for x in lat):.0f}, server+network "
+              f"{statistics.median(x['network_ms'] for x in lat):.0f}, paint {statistics.median(x['paint_ms'] for x in lat):.0f} ms)")
     assert med < 3000
     assert not errors, errors
     page.close()

@@ -88,6 +88,18 @@ def test_standing_pose_contains_original_timing():
         assert P[:, 1].max() == pytest.approx(rs.options.v_max)  # a still body may play at any speed
 
 
+def test_batched_distances_equal_per_frame_distances():
+    pd = ps.rigid_jump(noise=0.02)
+    rs = R.compute_regions(pd, opts())
+    rng = np.random.default_rng(3)
+    frames = rng.integers(0, rs.n_frames, 200)
+    u, v = rng.normal(0, 20, 200), rng.uniform(0, 30, 200)
+    d = rs.distances(frames, u, v)
+    expected = [rs.distance(int(i), (a, b)) for i, a, b in zip(frames, u, v)]
+    assert np.allclose(d, expected, atol=1e-12)
+    assert np.any(d == 0) and np.any(d > 0)
+
+
 def _random_frame(seed, m=24, K=16, extra=8):
     rng = np.random.default_rng(seed)
     nv = m + extra

@@ -247,6 +247,7 @@ class PhysicsMethod(Method):
     point_axes = "s"
     MAX_ITER = 300
     RUN_SECONDS = 2.0
+    QUICK_SECONDS = 0.06
     MAX_RUNS = 4
 
     @classmethod
@@ -348,8 +349,15 @@ class PhysicsMethod(Method):
             self._let_go()
         if job.cancelled():
             return
-        if self.rs.history:  # the edit itself at once (the curve through the moved point), then the optimum
-            yield self._solution(self.rs.history[-1], final=False)
+        # a short first run: a drag usually re-converges within it, and then the optimum is the only
+        # message (an intermediate one would cost the page a redraw before the answer it waits for)
+        info = self.rs.reconverge(max_iter=self.MAX_ITER, max_seconds=self.QUICK_SECONDS)
+        if job.cancelled():
+            return
+        if info.converged:
+            yield self._solution(info, final=True)
+            return
+        yield self._solution(info, final=False)
         # warm-started optimizer runs; a newer edit cancels between runs (the loop then solves the newest
         # state). Runs are long enough for the augmented Lagrangian to converge (restarting it often
         # would not), and bounded so that a hard case still shows progress.
@@ -385,7 +393,7 @@ def _feasibility(spline, regions, fps, tol=1e-2):
     s, v, u = spline(t), spline.speed(t) ** 2, spline.accel(t)
     times = np.asarray(regions.times, dtype=float)
     idx = np.clip(np.rint(np.interp(s, times, np.arange(len(times)))).astype(int), 0, len(times) - 1)
-    d = np.array([regions.distance(int(i), (float(a), float(b))) for i, a, b in zip(idx, u, v)])
+    d = regions.distances(idx, u, v)
     return np.where(d <= tol, 1.0, np.clip(1.0 - np.log10(np.maximum(d, tol) / tol) / 2.0, 0.0, 0.95))
 
 

@@ -352,7 +352,7 @@ def _num(op, key):
 
 
 def _round(a, digits=6):
-    return [round(float(x), digits) for x in np.asarray(a).ravel()]
+    return np.round(np.asarray(a, dtype=float).ravel(), digits).tolist()
 
 
 def _jsonable(info):

@@ -141,6 +141,15 @@ class RegionSet:
     def distance(self, i: int, point) -> float:
         return polygon_distance(self.polygon(i), point)
 
+    def distances(self, frames, u, v) -> np.ndarray:
+        """Distance of each point (u[k], v[k]) to the region of frame ``frames[k]`` (0 inside), at once."""
+        frames = np.asarray(frames, dtype=np.int64)
+        u, v = np.broadcast_arrays(np.asarray(u, dtype=float), np.asarray(v, dtype=float))
+        out = np.empty(len(frames))
+        _distances_kernel(np.ascontiguousarray(self.verts, dtype=float), np.asarray(self.offsets, dtype=np.int64),
+                          frames, np.ascontiguousarray(u), np.ascontiguousarray(v), out)
+        return out
+
 
 # ------------------------------------------------------------------------------------------------
 # 2-D geometry
@@ -190,6 +199,13 @@ def _closest_kernel(P, x, y):
         if d < bd:
             qx, qy, bd = cx, cy, d
     return qx, qy, bd
+
+
+@njit(cache=True)
+def _distances_kernel(verts, offsets, frames, u, v, out):
+    for k in range(frames.shape[0]):
+        i = frames[k]
+        out[k] = _closest_kernel(verts[offsets[i]:offsets[i + 1]], u[k], v[k])[2]
 
 
 def polygon_distance(P, point) -> float:
