@@ -404,8 +404,11 @@ def _frame_eval(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache, alpha, del
         k = cache[i]
         if k >= nv:
             k = 0
-        # walk the fan to the wedge containing (u, v)
-        for _ in range(nv + 1):
+        # walk the fan to the wedge containing (u, v). At the centre (the original timing, up to
+        # rounding) every wedge gives the same value, and the walk would chase the rounding's random
+        # direction around the polygon: keep the cached wedge.
+        at_centre = dx * dx + dy * dy <= 1e-24 * (1.0 + cu * cu + cv * cv)
+        for _ in range(0 if at_centre else nv + 1):
             j = k + 1 if k + 1 < nv else 0
             r0x, r0y = px[p0 + k] - cu, py[p0 + k] - cv
             r1x, r1y = px[p0 + j] - cu, py[p0 + j] - cv
