@@ -90,8 +90,8 @@ def prepare(motion, gravity=STANDARD_GRAVITY, mass_factors=None, objective="matc
     opts = region_options or RegionOptions()
     if opts.body_weight is None:
         opts.body_weight = float(pd0.total_mass) * 9.81
-    if opts.v_max < 25.0:
-        opts.v_max = 25.0
+    if opts.v_max < 64.0:
+        opts.v_max = 64.0
     t0 = time.perf_counter()
     regions = compute_regions(pd, opts, reference=pd0 if changed else None, progress=progress)
     timings["regions"] = time.perf_counter() - t0

@@ -78,7 +78,7 @@ class RegionOptions:
     """How feasible regions are computed. Units: u = p'' in 1/s, v = p'^2 (dimensionless)."""
 
     u_max: float = 60.0
-    v_max: float = 25.0
+    v_max: float = 64.0  # up to 8x speed (still frames, which any speed suits)
     method: str = "parametric"  # "parametric" (HiGHS + shadow-vertex walk) or "highs" (refinement)
     tol: float = 1e-3  # "highs": polygon accuracy in the (p'', p'^2) plane
     relax: bool = True  # False: exact regions (an empty one is an error)
