@@ -144,9 +144,12 @@ export class CurveEditor {
       svg.replaceChildren();
       this.gStatic = el("g", {}, svg);
       this.gDynamic = el("g", {}, svg);
+      this.gPoints = el("g", {}, svg);
+      this.pointsKey = null;
       this._renderStatic(this.gStatic, W, H);
     }
     this._renderDynamic(this.gDynamic, W, H);
+    this._renderPoints(this.gPoints);
   }
 
   _renderStatic(svg, W, H) {
@@ -204,19 +207,37 @@ export class CurveEditor {
       el("path", { class: "curve" + (this.pending ? " pending" : ""), d, id: "curve-path" }, svg);
     }
     el("line", { class: "playhead", x1: ax.x(this.playT), x2: ax.x(this.playT), y1: this.top, y2: H - this.bottom, id: "curve-playhead" }, svg);
+  }
 
-    // control points
+  // Control points. A physics curve has one per 0.05 s (about 90 for a 4-second clip), all of which
+  // move after each solve: when only positions changed, move the existing nodes instead of rebuilding
+  // them (and their listeners), which keeps the page's work per solution small.
+  _renderPoints(svg) {
+    const ax = this.axis, n = this.points.length;
+    const kind = (p, i) => (i === 0 || i === n - 1 ? "e" : p.locked ? "k" : "c") + (i === this.selected ? "s" : "");
+    const key = this.points.map(kind).join("");
+    const where = (p) => `translate(${ax.x(p.t)},${this.y(p.s)})`;
+    const label = (p, i) => `${i === 0 ? "start" : i === n - 1 ? "end (drag to change the duration)" : p.locked ? "keytime" : "control point"}: output ${p.t.toFixed(3)} s plays source ${p.s.toFixed(3)} s`;
+    if (key === this.pointsKey && svg.childElementCount === n) {
+      const nodes = svg.children;
+      this.points.forEach((p, i) => {
+        nodes[i].setAttribute("transform", where(p));
+        nodes[i].lastChild.textContent = label(p, i);
+      });
+      return;
+    }
+    this.pointsKey = key;
+    svg.replaceChildren();
     this.points.forEach((p, i) => {
       const cls = ["cp"];
       if (p.locked) cls.push("locked");
       if (i === 0 || i === n - 1) cls.push("end");
       if (i === this.selected) cls.push("selected");
-      const g = el("g", { class: cls.join(" "), "data-index": i, transform: `translate(${ax.x(p.t)},${this.y(p.s)})` }, svg);
+      const g = el("g", { class: cls.join(" "), "data-index": i, transform: where(p) }, svg);
       el("circle", { class: "hit", r: 11 }, g);
       if (p.locked && i > 0 && i < n - 1) el("rect", { class: "knob", x: -5.5, y: -5.5, width: 11, height: 11, rx: 2 }, g);
       else el("circle", { class: "knob", r: i === 0 || i === n - 1 ? 5 : 6 }, g);
-      const title = el("title", {}, g);
-      title.textContent = `${i === 0 ? "start" : i === n - 1 ? "end (drag to change the duration)" : p.locked ? "keytime" : "control point"}: output ${p.t.toFixed(3)} s plays source ${p.s.toFixed(3)} s`;
+      el("title", {}, g).textContent = label(p, i);
       g.addEventListener("pointerdown", (e) => this._startDrag(e, i));
     });
   }
