@@ -386,7 +386,7 @@ def _edge_proj(p0, nv, e, px, py, u, v):
     return ax + tc * ex, ay + tc * ey, t
 
 
-@njit(cache=True, fastmath=True, inline="always")
+@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
 def _frame_eval(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache, alpha, delta):
     """f, df/du, df/dv of frame i at (u, v) = (p'', p'^2) (polygon and centre in the frame's metric)."""
     su, sv = scale[i, 0], scale[i, 1]
@@ -464,7 +464,7 @@ def _frame_eval(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache, alpha, del
     return alpha * (r - delta) + g, k * du * su + gu, k * dv * sv + gv
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, error_model="numpy")
 def _span_poly(c, Msp, n_span):
     Asp = np.empty((n_span, 4))
     for m in range(n_span):
@@ -476,7 +476,7 @@ def _span_poly(c, Msp, n_span):
     return Asp
 
 
-@njit(cache=True, fastmath=True, inline="always")
+@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
 def _invert(a0, a1, a2, a3, sj, x, h, S):
     """x in [0, h] with a0 + a1 x + a2 x^2 + a3 x^3 = sj (increasing cubic): two Newton steps from the
     guess x, a safeguarded bisection-Newton only if they fail."""
@@ -509,7 +509,7 @@ def _invert(a0, a1, a2, a3, sj, x, h, S):
     return x
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, error_model="numpy")
 def _chunk(j0, j1, Asp, T, S, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode, wc, cache, alpha,
            delta, gamma, want_grad, gc):
     """Samples j0..j1-1 of the objective (see _evaluate); gradient added into gc."""
@@ -583,7 +583,7 @@ def _chunk(j0, j1, Asp, T, S, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, 
     return total, gT
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, error_model="numpy")
 def _evaluate(c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode, wc, cache, alpha, delta,
               gamma, want_grad, gc):
     """Objective (and gradient w.r.t. c and T when want_grad) of the spline with coefficients c."""
@@ -594,7 +594,7 @@ def _evaluate(c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mod
                   wc, cache, alpha, delta, gamma, want_grad, gc)
 
 
-@njit(cache=True, fastmath=True, parallel=True)
+@njit(cache=True, fastmath=True, error_model="numpy", parallel=True)
 def _evaluate_par(nch, c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode, wc, cache, alpha, delta,
                   gamma, want_grad, gc):
     """_evaluate split into ``nch`` chunks of samples run on parallel threads."""
@@ -705,7 +705,7 @@ def unbaked(pd, regions, target, obj: BakedObjective) -> UnbakedObjective:
                             obj.beta / obj.tau_scale ** 2)
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, error_model="numpy")
 def _evaluate_unbaked(c, T, breaks, Msp, s, omega, fi, poff, px, py, cen, scl, mode, wc, cache, alpha, delta,
                       gamma, a, b, cc, tgt, N, lam_aff, tscale):
     n_span = len(breaks) - 1
