@@ -477,12 +477,12 @@ def _span_poly(c, Msp, n_span):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", inline="always")
-def _invert(a0, a1, a2, a3, sj, x, h, S):
-    """x in [0, h] with a0 + a1 x + a2 x^2 + a3 x^3 = sj (increasing cubic): two Newton steps from the
-    guess x, a safeguarded bisection-Newton only if they fail."""
+def _invert(a0, a1, a2, a3, sj, x, h, S, steps):
+    """x in [0, h] with a0 + a1 x + a2 x^2 + a3 x^3 = sj (increasing cubic): ``steps`` Newton steps from
+    the guess x, a safeguarded bisection-Newton only if they miss the tolerance."""
     ok = False
     if 0.0 <= x <= h:
-        for _ in range(2):
+        for _ in range(steps):
             d = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
             if d <= 0.0:
                 break
@@ -529,6 +529,7 @@ def _chunk(j0, j1, Asp, T, S, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, 
     x = 0.0
     invT = 1.0 / T
     P1 = 0.0
+    P2 = 0.0
     s_prev = s[j0]
     for jj in range(j0, j1):
         sj = s[jj]
@@ -536,13 +537,16 @@ def _chunk(j0, j1, Asp, T, S, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, 
             m += 1
             x = 0.0
             P1 = Asp[m, 1]
+            P2 = 2.0 * Asp[m, 2]
             s_prev = Asp[m, 0]
         h = breaks[m + 1] - breaks[m]
         a0, a1, a2, a3 = Asp[m, 0], Asp[m, 1], Asp[m, 2], Asp[m, 3]
-        # predictor from the previous sample, two Newton steps; bisection only if that fails
+        # second-order predictor from the previous sample (the inverse function's Taylor series), one
+        # Newton step; bisection only if that misses the tolerance
         if P1 > 0.0:
-            x += (sj - s_prev) / P1
-        x = _invert(a0, a1, a2, a3, sj, x, h, S)
+            ds = (sj - s_prev) / P1
+            x += ds - 0.5 * P2 * ds * ds / P1
+        x = _invert(a0, a1, a2, a3, sj, x, h, S, 1)
         s_prev = sj
         P1 = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
         P2 = 2.0 * a2 + 6.0 * a3 * x
@@ -724,7 +728,7 @@ def _evaluate_unbaked(c, T, breaks, Msp, s, omega, fi, poff, px, py, cen, scl, m
             x = 0.0
         h = breaks[m + 1] - breaks[m]
         a0, a1, a2, a3 = Asp[m, 0], Asp[m, 1], Asp[m, 2], Asp[m, 3]
-        x = _invert(a0, a1, a2, a3, sj, min(max(x, 0.0), h), h, sj)
+        x = _invert(a0, a1, a2, a3, sj, min(max(x, 0.0), h), h, sj, 2)
         pd = (a1 + x * (2.0 * a2 + 3.0 * a3 * x)) * invT
         u = (2.0 * a2 + 6.0 * a3 * x) * invT * invT
         v = pd * pd
