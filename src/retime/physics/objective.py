@@ -626,10 +626,12 @@ PARALLEL_MIN_SAMPLES = 20000  # threads pay off only for long clips; on a shared
 
 
 def _kernel(obj):
+    if len(obj.s) < PARALLEL_MIN_SAMPLES:  # the usual case, decided without asking numba
+        return _evaluate
     import numba
 
     nth = numba.get_num_threads()
-    if nth > 1 and len(obj.s) >= PARALLEL_MIN_SAMPLES:
+    if nth > 1:
         return lambda *args: _evaluate_par(nth, *args)
     return _evaluate
 
