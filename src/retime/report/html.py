@@ -25,6 +25,8 @@ dl.facts dt { color: var(--muted); }
 dl.facts dd { margin: 0; }
 code, pre { font-family: ui-monospace, SFMono-Regular, Menlo, Consolas, "DejaVu Sans Mono", monospace; font-size: 13px; }
 pre { background: #f3f4f6; border-radius: 6px; padding: 10px 12px; overflow-x: auto; margin: 8px 0 0; }
+pre.commands { white-space: pre-wrap; overflow-wrap: anywhere; }
+pre.commands span { display: block; padding-left: 2em; text-indent: -2em; }  /* wrapped lines hang */
 video, img.plot { display: block; width: 100%; height: auto; border-radius: 6px; border: 1px solid var(--line); background: #fff; }
 .caption { color: var(--muted); font-size: 13px; margin: 8px 0 0; }
 table { width: 100%; border-collapse: collapse; font-variant-numeric: tabular-nums; }
@@ -131,7 +133,7 @@ def write_report(result, scale: float, video_fps: float) -> None:
     if r.frame_range:
         cmds.insert(0, f"# the demo used source frames {r.frame_range[0]} to {r.frame_range[1]} of the clip")
     add('<p class="note" style="margin-top:12px">The same from the command line:</p>')
-    add("<pre>" + _e("\n".join(cmds)) + "</pre>")
+    add('<pre class="commands">' + "".join(f"<span>{_e(c)}</span>" for c in cmds) + "</pre>")
     add("</section>")
 
     # video
