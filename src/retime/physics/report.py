@@ -17,7 +17,7 @@ import numpy as np
 from ..io_util import atomic_write
 from .forces import FanModel
 from .objective import actuated_mask
-from .regions import polygon_distance, residual_at
+from .regions import residual_at
 
 IN_REGION_TOL = 1e-2  # body weights of residual wrench beyond the region (about 7 N for 70 kg)
 
@@ -48,10 +48,11 @@ def build_report(spline, pd, regions, fps, tol=IN_REGION_TOL, info=None, extra=N
     frames = []
     inside = np.zeros(n_out, dtype=bool)
     fans = {}
+    dist = regions.distances(idx, pddot, pdot ** 2)
     for k in range(n_out):
         i = int(idx[k])
         u, v = float(pddot[k]), float(pdot[k] ** 2)
-        d = polygon_distance(regions.polygon(i), (u, v))
+        d = float(dist[k])
         if i not in fans:
             fans[i] = FanModel(regions.polygon(i), regions.polygon_lam(i), regions.center[i], regions.center_lam[i])
         lam = fans[i].lam((u, v))
