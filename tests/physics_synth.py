@@ -173,3 +173,17 @@ def free_fall(g_source=G, g_new=G, mass=60.0, fps=120.0, n=40, vel=(1.0, 2.0, 0.
     return SimpleNamespace(times=s, a=a, b=b, c=c, N=np.zeros((n, nv, 16)), contact=np.zeros((n, 1), bool),
                            tau_lo=np.zeros(nv), tau_hi=np.zeros(nv), mass=mass, gravity=np.array([0.0, -g_new, 0.0]),
                            vel=v0)
+
+
+def quarter_gravity_problem():
+    """(pd, regions, baked objective) of a rigid jump recorded under g and retimed under g/4 with
+    the API's default weights: its flight must play at sqrt(1/4)."""
+    from retime.physics import objective as O
+    from retime.physics import regions as R
+
+    ref = rigid_jump()
+    pd = rigid_jump(gravity=(0.0, -G / 4, 0.0), limits=ref.tau_hi[6:])
+    rs = R.compute_regions(pd, R.RegionOptions(workers=1, body_weight=ref.mass * G), reference=ref)
+    target = ref.b + ref.c - np.einsum("nvk,nk->nv", ref.N, rs.lam0)
+    obj = O.bake(pd, rs, target, alpha=10.0, beta=0.1, penalty="l1", gamma=0.03)
+    return pd, rs, obj

@@ -83,12 +83,7 @@ def test_knot_insertion_keeps_the_curve_and_removal_refits():
 @pytest.fixture(scope="module")
 def quarter_jump():
     """A rigid jump recorded under g, retimed under g/4: the flight must play at sqrt(1/4)."""
-    ref = ps.rigid_jump()
-    pd = ps.rigid_jump(gravity=(0.0, -G / 4, 0.0), limits=ref.tau_hi[6:])
-    rs = R.compute_regions(pd, R.RegionOptions(workers=1, body_weight=ref.mass * G), reference=ref)
-    target = ref.b + ref.c - np.einsum("nvk,nk->nv", ref.N, rs.lam0)
-    obj = O.bake(pd, rs, target, alpha=10.0, beta=0.1, penalty="l1", gamma=0.03)
-    return pd, rs, obj
+    return ps.quarter_gravity_problem()
 
 
 def _flight_speed(pd, spline):

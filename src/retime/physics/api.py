@@ -39,6 +39,7 @@ import numpy as np
 
 from ..errors import RetimeError
 from ..warp import TimingCurve, snap_duration
+from .globalstart import global_start
 from .objective import BakedObjective, bake, target_torques
 from .optimize import Problem, RetimingSession, SolveInfo, check_keytimes, solve
 from .regions import RegionOptions, RegionSet, compute_regions
@@ -111,12 +112,24 @@ def prepare(motion, gravity=STANDARD_GRAVITY, mass_factors=None, objective="matc
     return terms, pd, regions, obj
 
 
-def make_problem(obj, source_duration, duration=None, keytimes=(), knot_spacing=0.05, w_min=0.02, w_max=12.0):
+def make_problem(obj, source_duration, duration=None, keytimes=(), knot_spacing=0.05, w_min=0.02, w_max=12.0,
+                 start="global", timings=None):
     S = float(source_duration)
     kt = check_keytimes(keytimes, S, duration)
     n_spans = max(4, int(np.ceil(S / knot_spacing)))
     spline = TimingSpline.uniform(S, n_spans, duration)
-    if kt:
+    gs = None
+    if start == "global" and not kt:
+        gs = global_start(obj, duration)
+        if timings is not None and gs is not None:
+            timings["global_start"] = gs.seconds
+    if gs is not None:
+        T = duration if duration is not None else gs.duration
+        r = gs.duration / T
+        spline = TimingSpline.fit(spline.interior, S, T, None, lambda t: r * gs.speed_at_output(t * r), w_min=w_min)
+        if duration is None:
+            spline.fixed_T = None
+    elif kt:
         # start from the piecewise-linear keytime timing (constraints then hold up to the fit)
         T = duration if duration is not None else S
         ts = np.r_[0.0, [t for _, t in kt], T if duration is not None else max(T, kt[-1][1] + (S - kt[-1][0]))]
@@ -138,7 +151,7 @@ def physics_warp(motion, duration=None, scale=None, gravity=STANDARD_GRAVITY, ma
                  keytimes=(), body=None, contacts=None, friction=None, torque_scale=1.0, alpha=10.0, beta=0.1,
                  method="lbfgs", knot_spacing=0.05, samples_per_frame=4, region_options=None, terms=None,
                  max_iter=3000, progress=False, gamma=0.03, metric="residual", excess=True,
-                 penalty="l1", smoothing=DEFAULT_SMOOTHING, delta=1e-3) -> PhysicsResult:
+                 penalty="l1", smoothing=DEFAULT_SMOOTHING, delta=1e-3, start="global") -> PhysicsResult:
     """Retime ``motion`` physically; see the module docstring. ``duration`` in seconds (or ``scale``
     times the source duration; neither: free duration). ``keytimes``: [(source s, output s)].
     ``mass_factors``: {segment name: factor}."""
@@ -159,7 +172,7 @@ def physics_warp(motion, duration=None, scale=None, gravity=STANDARD_GRAVITY, ma
                                       alpha, beta, samples_per_frame, region_options, terms, progress, timings,
                                       gamma=gamma, metric=metric, excess=excess, penalty=penalty,
                                       smoothing=smoothing, delta=delta)
-    problem = make_problem(obj, S, duration, keytimes, knot_spacing)
+    problem = make_problem(obj, S, duration, keytimes, knot_spacing, start=start, timings=timings)
     session = RetimingSession(problem, method=method, fps=fps)
     t0 = time.perf_counter()
     info = session.reconverge(max_iter=max_iter, tol=1e-9)

@@ -53,6 +53,8 @@ from .tree import SPHERICAL, TreeModel, kinematics, project, wrenches
 
 STANDARD_GRAVITY = (0.0, -9.81, 0.0)
 DEFAULT_SMOOTHING = 0.025  # seconds
+NOISE_BAND = 0.1  # seconds: the wider low-pass whose difference bounds the capture's acceleration noise
+NOISE_CAP = 0.02  # body weights (per unit p'^2): the most of that difference taken as noise
 ROOT_WEIGHT = 100.0
 RIDGE = 1e-9
 
@@ -80,6 +82,7 @@ class PathDynamics:
     tau_ref: np.ndarray | None = None  # (n, nv) torques of the original timing (original physics)
     lambda_ref: np.ndarray | None = None  # (n, K) the contact forces behind tau_ref
     corners: np.ndarray | None = None  # (n, 8, 3) world positions of the sole corners
+    b_noise: np.ndarray | None = None  # (n, nv) |b - b of the wider low-pass| on the root rows (capture noise)
 
     @property
     def n_samples(self) -> int:
@@ -119,6 +122,10 @@ class DynamicsTerms:
     tau_limit: np.ndarray | None = None  # (nv,) symmetric limits at torque scale 1
     tau_ref: np.ndarray | None = None
     lambda_ref: np.ndarray | None = None
+    # the b-term wrenches (n, 1, nb, 6) and frames of the path low-passed at noise_band (see NOISE_BAND)
+    W_wide: np.ndarray | None = None
+    R_wide: np.ndarray | None = None
+    o_wide: np.ndarray | None = None
 
     def _contact_basis(self, mu):
         """N for friction mu, cached (PathDynamics share it: treat it as read-only)."""
@@ -167,6 +174,16 @@ class DynamicsTerms:
         coef[0, 0] = coef[1, 1] = 1.0
         coef[2, 2:] = g
         abc = project(self.tree, self.R, self.o, self.W, f, coef)
+        b_noise = None
+        if self.W_wide is not None:
+            b_wide = project(self.tree, self.R_wide, self.o_wide, self.W_wide, f, np.ones((1, 1)))[:, 0]
+            b_noise = np.zeros_like(b_wide)
+            nr = self.tree.n_root
+            # in flight only gravity acts and the parabola is known well: no noise budget there
+            stance = np.asarray(self.contact, dtype=bool).any(axis=1)
+            # capped: near a takeoff or landing the wider low-pass blurs real impacts, not noise
+            cap = NOISE_CAP * float(np.dot(f, self.tree.mass)) * 9.81
+            b_noise[stance, :nr] = np.minimum(np.abs(abc[stance, 1, :nr] - b_wide[stance, :nr]), cap)
         mu = self.friction if friction is None else float(friction)
         n_root = self.tree.n_root
         hi = np.zeros(self.tree.nv) if self.tau_limit is None else self.tau_limit * torque_scale
@@ -178,7 +195,7 @@ class DynamicsTerms:
             total_mass=float(np.dot(f, self.tree.mass)), gravity=g, friction=mu, fps=self.fps,
             samples_per_frame=self.samples_per_frame,
             tau_ref=self.tau_ref if with_reference else None,
-            lambda_ref=self.lambda_ref if with_reference else None, corners=self.corners)
+            lambda_ref=self.lambda_ref if with_reference else None, corners=self.corners, b_noise=b_noise)
 
 
 @njit(cache=True)
@@ -348,10 +365,16 @@ def _check_rigid(motion):
 
 
 def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smoothing=DEFAULT_SMOOTHING,
-                   reference=True) -> DynamicsTerms:
+                   reference=True, noise_band=NOISE_BAND) -> DynamicsTerms:
     """Path dynamics terms of ``motion`` (see the module docstring). ``body``: None (defaults), a
     :class:`~retime.physics.body.Body` or a TOML body file; ``contacts``: None (detect), a contact
-    file or an (F, 4) bool array; ``reference=False`` skips the reference forces and default limits."""
+    file or an (F, 4) bool array; ``reference=False`` skips the reference forces and default limits.
+
+    ``noise_band`` (seconds, > ``smoothing``; None or 0: off): the path is also low-passed at this
+    width, and :meth:`DynamicsTerms.combine` reports per sample how much the root rows' p'^2
+    coefficient ``b`` differs between the two (``PathDynamics.b_noise``). Captured accelerations are
+    only known to about that much: twice-differentiated marker noise and the slow sway of a still
+    stance look alike, and played k times faster both grow k^2-fold (see :mod:`.regions`)."""
     sk = motion.skeleton
     _check_rigid(motion)
     spf = int(samples_per_frame)
@@ -370,6 +393,12 @@ def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smooth
     terms = DynamicsTerms(tree=tree, body=body, times=times, fps=motion.fps, samples_per_frame=int(samples_per_frame),
                           R=R, o=o, W=W, corner_jt=corner_jt, corner_rows=corner_rows, contact=contact,
                           corners=corner_positions(body, sk, R, o), friction=body.friction)
+    if noise_band and noise_band > smoothing and tree.n_root:
+        wide = path_samples(motion.fps, motion.root_positions * sk.meters_per_unit, motion.rotations,
+                            shape.jtype, shape.vidx, shape.nv, times=times, smoothing=noise_band)
+        kin_w = kinematics(shape, wide.root_pos, wide.quats, wide.qd, wide.qdd)
+        terms.W_wide = np.ascontiguousarray(wrenches(tree, kin_w)[:, 1:2])
+        terms.R_wide, terms.o_wide = kin_w.R, kin_w.o
     if reference:
         add_reference(terms)
     return terms

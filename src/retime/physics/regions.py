@@ -84,6 +84,7 @@ class RegionOptions:
     relax: bool = True  # False: exact regions (an empty one is an error)
     allowance: float = 0.05  # residual root wrench every frame may use, fraction of body weight
     relax_pad: float = 0.01  # fraction of body weight added around every residual budget
+    noise: bool = True  # widen the root rows by the capture-noise band b_noise p'^2 (PathDynamics.b_noise)
     max_relaxation: float = 0.05  # frames needing more extra relaxation are flagged implausible
     moment_arm: float = 1.0  # metres: a root moment of W * moment_arm counts like a force of W
     actuated_slack_cost: float = 10.0
@@ -1096,7 +1097,7 @@ def _polygon(a, b, c, N, lo, hi, rho, act, rows, other, opts, Kall, eps, lp=None
 
 
 def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_root: int,
-                 budget=None) -> _FrameResult:
+                 budget=None, noise=None) -> _FrameResult:
     """The feasible polygon of one frame (see the module docstring).
 
     ``budget`` (nv,): row residuals the captured motion needs at this frame under the original
@@ -1128,6 +1129,10 @@ def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_
         budget = np.zeros(nv)
     lo1 = lo - np.where(budget > 0, pad, 0.0)
     hi1 = hi + np.where(budget > 0, pad, 0.0)
+    noisy = bool(opts.relax and noise is not None and opts.noise and np.any(np.asarray(noise) > 0))
+    if noisy:
+        budget = budget + np.asarray(noise, dtype=float)
+        lp0 = None  # the source fit's LP has no budget rows
     P, L, lp, k, piv = _polygon(a, b, c, N, lo1, hi1, budget, act, rows, other, opts, Kall, eps, lp=lp0)
     n_lp += k
     level = 0.0
@@ -1154,8 +1159,10 @@ def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_
     if dist > 0 and len(P) >= 3:
         center = q + 0.02 * (P.mean(axis=0) - q)
     clam = np.zeros(Kall)
-    if lp is not None and lp is lp0 and dist == 0.0 and not relaxed and np.any(lam0 != 0):
-        clam = lam0.copy()  # the centre is the original timing: its least-force LP was solved already
+    if lp is not None and (lp is lp0 or noisy) and dist == 0.0 and not relaxed and np.any(lam0 != 0):
+        # the centre is the original timing: its least-force LP was solved already (with the noise
+        # band too: those forces still fit the wider rows, and "match" then costs nothing there)
+        clam = lam0.copy()
     elif lp is not None:
         lam_c = solve_center(lp, center[0], center[1], force_weights(N[:3][:, act] if n_root >= 3 else N[:, act], n_root))
         n_lp += 1
@@ -1248,7 +1255,9 @@ def _one(pd, ref, i, opts, bw, n_root):
         budget, res0, lam0, n_ref = source_fit(np.asarray(ref.a[i], float), np.asarray(ref.b[i], float),
                                                np.asarray(ref.c[i], float), np.asarray(ref.N[i], float),
                                                rlo, rhi, opts, bw, n_root)
-    r = frame_region(pd.a[i], pd.b[i], pd.c[i], pd.N[i], lo, hi, opts, bw, n_root, budget=budget)
+    noise = getattr(pd, "b_noise", None)
+    r = frame_region(pd.a[i], pd.b[i], pd.c[i], pd.N[i], lo, hi, opts, bw, n_root, budget=budget,
+                     noise=None if noise is None else noise[i])
     if ref is not None:
         r.lam0, r.source_residual = lam0, res0
         r.n_lp += n_ref
