@@ -68,6 +68,9 @@ def register(sub):
     p.add_argument("--torque-scale", type=positive_float, default=1.0, metavar="X", help="scale all torque limits")
     p.add_argument("--method", choices=("lbfgs", "gd", "slsqp"), default="lbfgs",
                    help="optimizer: quasi-Newton L-BFGS-B (default), the paper's gradient descent, or SLSQP")
+    p.add_argument("--start", choices=("global", "uniform"), default="global",
+                   help="where the optimizer starts: the grid-optimal timing found by dynamic programming "
+                        "(default; not with keytimes) or the uniform timing, as in the paper")
     p.add_argument("--report", metavar="REPORT.json", help="per output frame: contact, feasibility, distance, torque norm")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(func=run)
@@ -101,7 +104,7 @@ def run(args):
     result = physics_warp(m, duration=duration, gravity=gravity, mass_factors=masses or None,
                           objective=args.objective, keytimes=args.keytime, body=args.body, contacts=args.contacts,
                           friction=args.friction, torque_scale=args.torque_scale, method=args.method,
-                          progress=not args.quiet)
+                          progress=not args.quiet, start=args.start)
     write_outputs(args, m, result.curve, apply_timing(m, result.curve))
     if args.report:
         write_report(result.report, args.report)

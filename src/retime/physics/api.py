@@ -27,6 +27,16 @@ Defaults, and why (measured on CMU jumps 16_06, 16_03, 13_11, 118_26; see the te
 * ``smoothing = 0.05`` s: the path is low-passed (Gaussian) for the dynamics. The timing spline cannot
   follow anything faster, and twice-differentiated capture noise would otherwise decide how fast a
   still stance may be played (:mod:`.dynamics` uses 0.025 s by default).
+* the **capture-noise band** (:data:`.dynamics.NOISE_BAND` = 0.1 s, :data:`.dynamics.NOISE_CAP` = 2 %
+  of body weight): in stance the root rows may also use |b(0.05 s) - b(0.1 s)| p'^2, what the
+  capture's accelerations are uncertain by (see :mod:`.regions`). Without it, the sway and marker
+  noise of a still stance, 16- to 25-fold at 4-5x speed, decided how fast a stance could be played:
+  the least feasible duration (by a time-optimal sweep through the regions) of 16_05 was 1.30 s, more
+  than its half duration 1.23 s; with it 1.11 s.
+* ``start = "global"``: the spline starts from the grid optimum of the same objective
+  (:mod:`.globalstart`, dynamic programming over source frame x speed, which puts a violation that
+  cannot be avoided on few output frames) instead of the uniform timing; ``"uniform"`` is the paper's
+  start. With keytimes the start is their piecewise-linear timing.
 
 Without ``duration`` (and ``scale``) the duration is free: the optimizer chooses it.
 """
@@ -157,6 +167,8 @@ def physics_warp(motion, duration=None, scale=None, gravity=STANDARD_GRAVITY, ma
     ``mass_factors``: {segment name: factor}."""
     if objective not in ("match", "minimize"):
         raise RetimeError(f"unknown objective {objective!r} (use 'match' or 'minimize')")
+    if start not in ("global", "uniform"):
+        raise RetimeError(f"unknown start {start!r} (use 'global' or 'uniform')")
     fps = float(motion.fps)
     S = motion.duration
     if scale is not None:

@@ -47,6 +47,16 @@ speed. With unchanged physics the original timing is therefore always feasible. 
 frame's root rows may use a residual of ``allowance`` = 5% of the body weight under the current
 gravity -- the modelling error biomechanics accepts for residual forces of captured motion.
 
+**Capture-noise band.** A still stance played 4x faster has 16x its accelerations, and at such a
+stance the captured accelerations are mostly sway and twice-differentiated marker noise: which of
+the two decides whether a fast stance is feasible. So in stance (never in flight, where the parabola
+is known well) the root rows are also widened by ``PathDynamics.b_noise`` p'^2: how much their p'^2
+coefficient b changes between the dynamics' low-pass and a twice wider one (0.1 s), capped at 2% of
+body weight (near a takeoff or a landing the wide low-pass blurs real impacts). A timing is then
+feasible if a path within the capture's own uncertainty can carry it. ``noise = False`` turns it off.
+With unchanged physics the fan centre keeps the source fit's least-force lambda, so "match" still
+costs nothing at the original timing.
+
 If a region is still empty (changed physics can ask for more than the body can give), the smallest
 extra residual is found the same way over all timings in the box, added with the pad, and reported
 as ``relaxation`` (fraction of body weight); frames needing more than ``max_relaxation`` (5%) are
