@@ -49,7 +49,7 @@ import numpy as np
 
 from ..errors import RetimeError
 from ..warp import TimingCurve, snap_duration
-from .globalstart import global_start
+from .globalstart import global_start, soften
 from .objective import BakedObjective, bake, target_torques
 from .optimize import Problem, RetimingSession, SolveInfo, check_keytimes, solve
 from .regions import RegionOptions, RegionSet, compute_regions
@@ -139,6 +139,8 @@ def make_problem(obj, source_duration, duration=None, keytimes=(), knot_spacing=
         spline = TimingSpline.fit(spline.interior, S, T, None, lambda t: r * gs.speed_at_output(t * r), w_min=w_min)
         if duration is None:
             spline.fixed_T = None
+        if gs.outside is not None and gs.outside.any():
+            obj = soften(obj, gs.outside)
     elif kt:
         # start from the piecewise-linear keytime timing (constraints then hold up to the fit)
         T = duration if duration is not None else S

@@ -17,9 +17,18 @@ so the baked objective of :mod:`.objective` can be minimized *globally* on a gri
 * the duration: a price ``mu`` per output second, found by bisection so the path lasts ``T``
   (``mu = 0`` for a free duration).
 
-The edge costs are computed once (compiled, in parallel over edges); each bisection step is one
-O(E J^2) pass. The best path's speed profile is then fitted by the spline and refined by the local
-optimizer (:mod:`.optimize`) on the exact objective.
+Speeds are fine (320 levels from 0.05x to 12x, 1.7 % apart) and an edge changes the speed by at
+most ``band`` levels, so small p'' exist at any speed and an edge costs O(band), not O(levels). The
+edge costs are computed once (compiled, in parallel over edges); each bisection step is one
+O(E J band) pass. ``kappa`` makes the duration/cost front non-convex, so the Lagrangian may jump over
+the target duration; it is then lowered (down to 0, the objective alone) until the target is met
+within 2 %. The best path's speed profile is fitted by the spline and refined by the local optimizer
+(:mod:`.optimize`) on the objective, with the frames the path gives up softened (:func:`soften`) so
+that the refinement keeps the violation where the grid optimum put it.
+
+Measured (CMU jumps, 0.4 of their duration, fraction of output frames feasible, grid start vs the
+paper's uniform start): 16_06 0.93 vs 0.70, 13_39 0.81 vs 0.51, 13_11 0.87 vs 0.74, 16_05 0.61 vs
+0.50; at half duration 02_04 (which starts with a T-pose) 0.91 vs 0.85.
 """
 from __future__ import annotations
 
@@ -33,6 +42,7 @@ from numba import njit, prange
 from .objective import BakedObjective, _frame_eval
 
 _BIG = 1e300
+KAPPA = 40.0  # price of an output second outside the region, in the objective's units (alpha = 10 per body weight)
 
 
 @dataclass
@@ -44,6 +54,7 @@ class GlobalStart:
     duration: float  # output seconds of the path
     mu: float  # price of an output second that gave this duration
     seconds: float
+    outside: np.ndarray | None = None  # (n,) bool: frames the path leaves outside their regions
 
     def output_times(self) -> np.ndarray:
         """Output time of every node (v linear in s between nodes)."""
@@ -64,9 +75,10 @@ def speed_levels(w_lo=0.05, w_hi=8.0, levels=96) -> np.ndarray:
 
 
 @njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
-def _edge_costs(nodes, times, w, poff, px, py, cen, scale, mode, wc, alpha, delta, gamma, kappa, d_tol, u_max,
-                cost, dur):
-    """cost[e, j, l], dur[e, j, l] of the edge from (nodes[e], w[j]) to (nodes[e + 1], w[l])."""
+def _edge_costs(nodes, times, w, band, poff, px, py, cen, scale, mode, wc, alpha, delta, gamma, d_tol,
+                u_max, cost, outt, dur):
+    """Objective cost[e, j, k], output time outside the regions outt[e, j, k] and output time
+    dur[e, j, k] of the edge from (nodes[e], w[j]) to (nodes[e + 1], w[j + k - band])."""
     E = len(nodes) - 1
     J = len(w)
     for e in prange(E):
@@ -75,56 +87,60 @@ def _edge_costs(nodes, times, w, poff, px, py, cen, scale, mode, wc, alpha, delt
         sa, L = times[ia], times[ib] - times[ia]
         for j in range(J):
             vj = w[j] * w[j]
-            for l in range(J):
+            for k in range(2 * band + 1):
+                l = j + k - band
+                outt[e, j, k] = 0.0
+                if l < 0 or l >= J:
+                    cost[e, j, k] = _BIG
+                    dur[e, j, k] = 0.0
+                    continue
                 vl = w[l] * w[l]
                 u = (vl - vj) / (2.0 * L)
                 if abs(u) > u_max:
-                    cost[e, j, l] = _BIG
-                    dur[e, j, l] = 0.0
+                    cost[e, j, k] = _BIG
+                    dur[e, j, k] = 0.0
                     continue
                 c = 0.0
+                o = 0.0
                 for m in range(ia, ib):
                     ds = times[m + 1] - times[m]
                     v = vj + (vl - vj) * (times[m] - sa) / L
                     pd = math.sqrt(v)
                     f, _, _ = _frame_eval(m, u, v, poff, px, py, cen, scale, mode, wc, cache, alpha, delta)
                     g, _, _ = _frame_eval(m, u, v, poff, px, py, cen, scale, mode, wc, cache, 0.0, 0.0)
-                    pen = f - g  # alpha (sqrt(d^2 + delta^2) - delta)
                     h = f / pd + gamma * (pd + 1.0 / pd - 2.0)
-                    if alpha > 0.0 and pen > alpha * d_tol:
-                        h += kappa / pd
+                    if alpha > 0.0 and f - g > alpha * d_tol:  # outside the region, beyond the tolerance
+                        o += ds / pd
                     c += ds * h
-                cost[e, j, l] = c
-                dur[e, j, l] = 2.0 * L / (w[j] + w[l])  # exact for v linear in s
-    return cost, dur
+                cost[e, j, k] = c
+                outt[e, j, k] = o
+                dur[e, j, k] = 2.0 * L / (w[j] + w[l])  # exact for v linear in s
+    return cost, outt, dur
 
 
 @njit(cache=True, fastmath=True)
-def _shortest(cost, dur, mu, start_level):
-    """Least sum of cost + mu * dur over paths through the grid; returns (levels per node, duration)."""
-    E, J, _ = cost.shape
+def _shortest(cost, outt, kappa, dur, mu, band):
+    """Least sum of cost + kappa * outt + mu * dur over paths through the banded grid (edge (e, j, k) goes from level
+    j to level j + k - band); returns (levels per node, duration, value)."""
+    E, J, B = cost.shape
     V = np.zeros(J)
-    if start_level >= 0:
-        for j in range(J):
-            V[j] = 0.0 if j == start_level else _BIG
     back = np.zeros((E, J), dtype=np.int64)
     Vn = np.empty(J)
     for e in range(E):
         for l in range(J):
-            best = _BIG
-            arg = 0
-            for j in range(J):
-                if V[j] >= _BIG:
-                    continue
-                c = cost[e, j, l]
+            Vn[l] = _BIG
+        for j in range(J):
+            if V[j] >= _BIG:
+                continue
+            for k in range(B):
+                c = cost[e, j, k]
                 if c >= _BIG:
                     continue
-                x = V[j] + c + mu * dur[e, j, l]
-                if x < best:
-                    best = x
-                    arg = j
-            Vn[l] = best
-            back[e, l] = arg
+                l = j + k - band
+                x = V[j] + c + kappa * outt[e, j, k] + mu * dur[e, j, k]
+                if x < Vn[l]:
+                    Vn[l] = x
+                    back[e, l] = j
         for l in range(J):
             V[l] = Vn[l]
     path = np.zeros(E + 1, dtype=np.int64)
@@ -136,58 +152,111 @@ def _shortest(cost, dur, mu, start_level):
     T = 0.0
     for e in range(E - 1, -1, -1):
         path[e] = back[e, path[e + 1]]
-        T += dur[e, path[e], path[e + 1]]
+        T += dur[e, path[e], path[e + 1] - path[e] + band]
     return path, T, best
 
 
-def global_start(obj: BakedObjective, duration=None, stride=2, levels=96, w_lo=0.05, w_hi=8.0, kappa=1.0,
-                 d_tol=1e-2, u_max=60.0, iters=40) -> GlobalStart | None:
+@njit(cache=True, fastmath=True, error_model="numpy")
+def _outside(nodes, times, speed, poff, px, py, cen, scale, mode, wc, alpha, delta, d_tol, out):
+    """out[m] = frame m lies outside its region (beyond d_tol) on the path's speed profile."""
+    cache = np.zeros(len(poff) - 1, dtype=np.int64)
+    for e in range(len(nodes) - 1):
+        ia, ib = nodes[e], nodes[e + 1]
+        sa, L = times[ia], times[ib] - times[ia]
+        vj, vl = speed[e] ** 2, speed[e + 1] ** 2
+        u = (vl - vj) / (2.0 * L)
+        for m in range(ia, ib + 1 if e == len(nodes) - 2 else ib):
+            v = vj + (vl - vj) * (times[m] - sa) / L
+            f, _, _ = _frame_eval(m, u, v, poff, px, py, cen, scale, mode, wc, cache, alpha, delta)
+            g, _, _ = _frame_eval(m, u, v, poff, px, py, cen, scale, mode, wc, cache, 0.0, 0.0)
+            out[m] = f - g > alpha * d_tol
+
+
+def global_start(obj: BakedObjective, duration=None, stride=2, levels=320, band=10, w_lo=0.05, w_hi=12.0,
+                 kappa=KAPPA, d_tol=1e-2, u_max=60.0, iters=60) -> GlobalStart | None:
     """The grid-optimal speed profile of ``obj`` (see the module docstring), lasting ``duration``
-    output seconds (None: free). Returns None when no grid path exists."""
+    output seconds (None: free). Speeds are ``levels`` geometric steps from ``w_lo`` to ``w_hi``; an
+    edge changes the speed by at most ``band`` steps. Returns None when no grid path exists."""
     t0 = time.perf_counter()
     times = np.asarray(obj.times, dtype=float)
     n = len(times)
     nodes = np.unique(np.r_[np.arange(0, n - 1, max(1, int(stride))), n - 1]).astype(np.int64)
     w = speed_levels(w_lo, w_hi, levels)
-    E, J = len(nodes) - 1, len(w)
-    cost = np.empty((E, J, J))
-    dur = np.empty((E, J, J))
-    _edge_costs(nodes, times, w, obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc, obj.alpha,
-                obj.delta, obj.gamma, float(kappa), float(d_tol), float(u_max), cost, dur)
-    path, T, val = _shortest(cost, dur, 0.0, -1)
+    E, J, B = len(nodes) - 1, len(w), 2 * int(band) + 1
+    cost = np.empty((E, J, B))
+    outt = np.empty((E, J, B))
+    dur = np.empty((E, J, B))
+    _edge_costs(nodes, times, w, int(band), obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc,
+                obj.alpha, obj.delta, obj.gamma, float(d_tol), float(u_max), cost, outt, dur)
+    path, T, val = _shortest(cost, outt, float(kappa), dur, 0.0, int(band))
     if val >= _BIG:
         return None
     mu = 0.0
     if duration is not None:
+        # the price of infeasible output time makes the duration jump with mu (the Lagrangian only
+        # reaches the convex hull of the duration/cost front): lower it until the duration is met
         target = float(duration)
-        # more price per output second -> shorter; bracket, then bisect
-        lo, hi = 0.0, 0.0
-        step = 1.0
-        if T > target:
-            while True:
-                hi = step
-                p, Th, _ = _shortest(cost, dur, hi, -1)
-                if Th <= target or step > 1e8:
-                    break
-                lo, step = hi, step * 4.0
-        else:
-            while True:
-                lo = -step
-                p, Tl, _ = _shortest(cost, dur, lo, -1)
-                if Tl >= target or step > 1e8:
-                    break
-                hi, step = lo, step * 4.0
-        best = (abs(T - target), path, T, 0.0)
-        for _ in range(iters):
-            mid = 0.5 * (lo + hi)
-            p, Tm, _ = _shortest(cost, dur, mid, -1)
-            if abs(Tm - target) < best[0]:
-                best = (abs(Tm - target), p, Tm, mid)
-            if Tm > target:
-                lo = mid
-            else:
-                hi = mid
-            if abs(Tm - target) <= 1e-4 * target:
+        for k in (kappa, kappa / 4, kappa / 16, 0.0):
+            p0, T0, _ = _shortest(cost, outt, float(k), dur, 0.0, int(band))
+            path, T, mu = _meet_duration(cost, outt, float(k), dur, int(band), target, p0, T0, iters)
+            if abs(T - target) <= 0.02 * target:
                 break
-        _, path, T, mu = best
-    return GlobalStart(times[nodes], w[path], float(T), float(mu), time.perf_counter() - t0)
+    speed = w[path]
+    out = np.zeros(n, dtype=np.bool_)
+    _outside(nodes, times, speed, obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc, obj.alpha,
+             obj.delta, float(d_tol), out)
+    return GlobalStart(times[nodes], speed, float(T), float(mu), time.perf_counter() - t0, out)
+
+
+def _meet_duration(cost, outt, kappa, dur, band, target, path, T, iters):
+    """Bisection on the price of an output second. The duration jumps where the optimum changes its
+    mind, so the answer is the longest path not over ``target`` (the spline's fit then stretches it by
+    the remaining fraction), or the nearest one if every path is longer."""
+    lo, hi, step = 0.0, 0.0, 1.0
+    seen = [(T, path, 0.0)]
+    if T > target:
+        while step < 1e9:
+            hi = step
+            p, Th, _ = _shortest(cost, outt, kappa, dur, hi, band)
+            seen.append((Th, p, hi))
+            if Th <= target:
+                break
+            lo, step = hi, step * 4.0
+    else:
+        while step < 1e9:
+            lo = -step
+            p, Tl, _ = _shortest(cost, outt, kappa, dur, lo, band)
+            seen.append((Tl, p, lo))
+            if Tl >= target:
+                break
+            hi, step = lo, step * 4.0
+    for _ in range(iters):
+        mid = 0.5 * (lo + hi)
+        p, Tm, _ = _shortest(cost, outt, kappa, dur, mid, band)
+        seen.append((Tm, p, mid))
+        if abs(Tm - target) <= 1e-3 * target:
+            break
+        if Tm > target:
+            lo = mid
+        else:
+            hi = mid
+    under = [x for x in seen if x[0] <= target * (1 + 1e-3)]
+    T, path, mu = max(under, key=lambda x: x[0]) if under else min(seen, key=lambda x: abs(x[0] - target))
+    return path, T, mu
+
+
+def soften(obj: BakedObjective, frames, factor=0.05) -> BakedObjective:
+    """A copy of ``obj`` whose feasibility term is ``factor`` times weaker at ``frames`` (bool (n,)):
+    the frames the grid optimum gives up, so that the local refinement does not spread their
+    violation back over their neighbours (the distance metric of those frames is scaled)."""
+    import dataclasses
+
+    frames = np.asarray(frames, dtype=bool)
+    scale, px, py, cen = obj.scale.copy(), obj.px.copy(), obj.py.copy(), obj.cen.copy()
+    for i in np.flatnonzero(frames):
+        a, b = obj.poff[i], obj.poff[i + 1]
+        scale[i] *= factor
+        px[a:b] *= factor
+        py[a:b] *= factor
+        cen[i] *= factor
+    return dataclasses.replace(obj, scale=scale, px=px, py=py, cen=cen, cache=obj.cache.copy())
