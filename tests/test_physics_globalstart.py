@@ -79,7 +79,7 @@ def test_fixed_duration_is_met_by_the_price_of_time(quarter_jump, scale):
     T = scale * pd.times[-1]
     gs = global_start(obj, T)
     assert gs.duration == pytest.approx(T, rel=0.02) and gs.duration <= T * (1 + 1e-3)
-    assert gs.output_times()[-1] == pytest.approx(gs.duration, rel=1e-9)
+    assert gs.output_times()[-1] == pytest.approx(gs.duration, rel=1e-6)  # tables in single precision
 
 
 # ------------------------------------------------------------------------------------------------

@@ -28,7 +28,7 @@ that the refinement keeps the violation where the grid optimum put it.
 
 Measured (CMU jumps, 0.4 of their duration, fraction of output frames feasible, grid start vs the
 paper's uniform start): 16_06 0.93 vs 0.70, 13_39 0.81 vs 0.51, 13_11 0.87 vs 0.74, 16_05 0.61 vs
-0.50; at half duration 02_04 (which starts with a T-pose) 0.91 vs 0.85.
+0.50; at half duration 02_04 (which starts with a T-pose) 0.91 vs 0.77.
 """
 from __future__ import annotations
 
@@ -42,6 +42,7 @@ from numba import njit, prange
 from .objective import BakedObjective, _frame_eval
 
 _BIG = 1e300
+_FORBIDDEN = 1e30  # an edge cost at or above this is not allowed (fits float32)
 KAPPA = 40.0  # price of an output second outside the region, in the objective's units (alpha = 10 per body weight)
 
 
@@ -91,13 +92,13 @@ def _edge_costs(nodes, times, w, band, poff, px, py, cen, scale, mode, wc, alpha
                 l = j + k - band
                 outt[e, j, k] = 0.0
                 if l < 0 or l >= J:
-                    cost[e, j, k] = _BIG
+                    cost[e, j, k] = _FORBIDDEN
                     dur[e, j, k] = 0.0
                     continue
                 vl = w[l] * w[l]
                 u = (vl - vj) / (2.0 * L)
                 if abs(u) > u_max:
-                    cost[e, j, k] = _BIG
+                    cost[e, j, k] = _FORBIDDEN
                     dur[e, j, k] = 0.0
                     continue
                 c = 0.0
@@ -134,7 +135,7 @@ def _shortest(cost, outt, kappa, dur, mu, band):
                 continue
             for k in range(B):
                 c = cost[e, j, k]
-                if c >= _BIG:
+                if c >= _FORBIDDEN:
                     continue
                 l = j + k - band
                 x = V[j] + c + kappa * outt[e, j, k] + mu * dur[e, j, k]
@@ -172,20 +173,24 @@ def _outside(nodes, times, speed, poff, px, py, cen, scale, mode, wc, alpha, del
             out[m] = f - g > alpha * d_tol
 
 
-def global_start(obj: BakedObjective, duration=None, stride=2, levels=320, band=10, w_lo=0.05, w_hi=12.0,
+def global_start(obj: BakedObjective, duration=None, stride=None, levels=320, band=10, w_lo=0.05, w_hi=12.0,
                  kappa=KAPPA, d_tol=1e-2, u_max=60.0, iters=60) -> GlobalStart | None:
     """The grid-optimal speed profile of ``obj`` (see the module docstring), lasting ``duration``
     output seconds (None: free). Speeds are ``levels`` geometric steps from ``w_lo`` to ``w_hi``; an
-    edge changes the speed by at most ``band`` steps. Returns None when no grid path exists."""
+    edge changes the speed by at most ``band`` steps; nodes every ``stride`` source frames (default 2,
+    more for clips over 2400 frames, so that the tables stay under about 100 MB). Returns None when
+    no grid path exists."""
     t0 = time.perf_counter()
     times = np.asarray(obj.times, dtype=float)
     n = len(times)
+    if stride is None:
+        stride = max(2, math.ceil(n / 1200))
     nodes = np.unique(np.r_[np.arange(0, n - 1, max(1, int(stride))), n - 1]).astype(np.int64)
     w = speed_levels(w_lo, w_hi, levels)
     E, J, B = len(nodes) - 1, len(w), 2 * int(band) + 1
-    cost = np.empty((E, J, B))
-    outt = np.empty((E, J, B))
-    dur = np.empty((E, J, B))
+    cost = np.empty((E, J, B), dtype=np.float32)  # single precision: the sums along a path are double
+    outt = np.empty((E, J, B), dtype=np.float32)
+    dur = np.empty((E, J, B), dtype=np.float32)
     _edge_costs(nodes, times, w, int(band), obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc,
                 obj.alpha, obj.delta, obj.gamma, float(d_tol), float(u_max), cost, outt, dur)
     path, T, val = _shortest(cost, outt, float(kappa), dur, 0.0, int(band))

@@ -1224,6 +1224,7 @@ _SHARED = {}
 
 def _work(frames):
     pd, ref, opts, bw, n_root = _SHARED["args"]
+    _POOL.clear()  # warm starts only within a chunk: the answer must not depend on the scheduling
     return [_one(pd, ref, i, opts, bw, n_root) for i in frames]
 
 
@@ -1312,6 +1313,7 @@ def compute_regions(pd, options: RegionOptions | None = None, reference=None, fr
             finally:
                 _SHARED.clear()
     if results is None:
+        _POOL.clear()  # same warm starts, same answer, whatever ran before
         it = idx
         if progress:
             from tqdm import tqdm
