@@ -1,5 +1,4 @@
-"""The grid-optimal start of the timing spline (retime.physics.globalstart) and the capture-noise
-band of the regions (PathDynamics.b_noise)."""
+"""The grid-optimal start of the timing spline (retime.physics.globalstart)."""
 from __future__ import annotations
 
 import itertools
@@ -12,11 +11,8 @@ import pytest
 sys.path.insert(0, os.path.dirname(__file__))
 import physics_synth as ps  # noqa: E402
 
-from retime.data import bundled_path  # noqa: E402
-from retime.motion import load_motion  # noqa: E402
 from retime.physics import objective as O  # noqa: E402
 from retime.physics import regions as R  # noqa: E402
-from retime.physics.dynamics import NOISE_CAP, dynamics_terms  # noqa: E402
 from retime.physics.globalstart import _shortest, global_start, speed_levels  # noqa: E402
 
 G = 9.81
@@ -80,43 +76,6 @@ def test_fixed_duration_is_met_by_the_price_of_time(quarter_jump, scale):
     gs = global_start(obj, T)
     assert gs.duration == pytest.approx(T, rel=0.02) and gs.duration <= T * (1 + 1e-3)
     assert gs.output_times()[-1] == pytest.approx(gs.duration, rel=1e-6)  # tables in single precision
-
-
-# ------------------------------------------------------------------------------------------------
-# capture-noise band
-
-@pytest.fixture(scope="module")
-def jump():
-    return load_motion(bundled_path("16_06.amc"))
-
-
-def test_noise_band_is_the_capped_difference_of_two_low_passes(jump):
-    terms = dynamics_terms(jump, smoothing=0.05, noise_band=0.1)
-    wide = dynamics_terms(jump, smoothing=0.1, noise_band=None, reference=False)
-    for masses in (None, {"lfemur": 10.0}):
-        pd = terms.combine(mass_factors=masses)
-        b_wide = wide.combine(mass_factors=masses, with_reference=False).b
-        stance = np.asarray(pd.contact).any(axis=1)
-        cap = NOISE_CAP * pd.total_mass * 9.81
-        expect = np.minimum(np.abs(pd.b[:, :6] - b_wide[:, :6]), cap)
-        np.testing.assert_allclose(pd.b_noise[stance, :6], expect[stance], rtol=1e-9, atol=1e-9)
-        assert np.all(pd.b_noise[~stance] == 0.0) and np.all(pd.b_noise[:, 6:] == 0.0)
-        assert pd.b_noise[stance, :6].max() > 0.0
-
-
-def test_noise_band_only_widens_the_regions(jump):
-    clip = jump.frames(slice(0, 120))  # the still stance before the jump
-    pd = dynamics_terms(clip, smoothing=0.05, noise_band=0.1).combine()
-    opts = dict(workers=1, body_weight=pd.total_mass * 9.81)
-    tight = R.compute_regions(pd, R.RegionOptions(noise=False, **opts))
-    wide = R.compute_regions(pd, R.RegionOptions(noise=True, **opts))
-    grew = 0
-    for i in range(0, len(pd.times), 7):
-        P = tight.polygon(i)
-        assert np.all(wide.distances(np.full(len(P), i), P[:, 0], P[:, 1]) <= 1e-6)  # superset
-        assert wide.contains(i, (0.0, 1.0))
-        grew += R.polygon_area(wide.polygon(i)) > R.polygon_area(P) * (1 + 1e-6)
-    assert grew > 0
 
 
 def test_softened_frames_pay_less_for_the_same_violation(quarter_jump):

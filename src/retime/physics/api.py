@@ -200,5 +200,6 @@ def physics_warp(motion, duration=None, scale=None, gravity=STANDARD_GRAVITY, ma
     curve = spline.timing_curve(fps)
     report = build_report(spline, pd, regions, fps, info=info,
                           extra={"objective_kind": objective, "gravity": [float(x) for x in np.asarray(gravity)],
-                                 "mass_factors": dict(mass_factors or {}), "timings": {k: round(v, 4) for k, v in timings.items()}})
+                                 "mass_factors": dict(mass_factors or {}), "timings": {k: round(v, 4) for k, v in timings.items()},
+                                 "bind_pose_frames": int(getattr(terms, "bind_pose_frames", 0))})
     return PhysicsResult(curve, report, spline, session, pd, regions, obj, info, timings, terms)

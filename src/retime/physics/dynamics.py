@@ -123,6 +123,7 @@ class DynamicsTerms:
     tau_ref: np.ndarray | None = None
     lambda_ref: np.ndarray | None = None
     # the b-term wrenches (n, 1, nb, 6) and frames of the path low-passed at noise_band (see NOISE_BAND)
+    bind_pose_frames: int = 0  # leading frames held at the first real pose (see bind_pose_frames)
     W_wide: np.ndarray | None = None
     R_wide: np.ndarray | None = None
     o_wide: np.ndarray | None = None
@@ -352,6 +353,31 @@ def torque_limits(tree: TreeModel, body: Body | None, tau_ref, margin=None, floo
     return hi
 
 
+def bind_pose_frames(motion, rest_deg=2.0, max_seconds=0.25) -> int:
+    """Leading frames of an exporter's bind pose to leave out of the dynamics (0: none).
+
+    Some BVH exporters (e.g. the Daz-friendly CMU conversions) start with a T-pose frame, every joint
+    rotation near identity (half the joints within 2 degrees), then swing into the motion within a few frames: 90 degrees of arm in
+    40 ms, which no body does and which low-passing smears over a tenth of a second of dynamics.
+    When frame 0 is such a rest pose, the frames up to the first one whose largest joint rotation
+    step is no larger than the clip's 99th percentile (at most ``max_seconds``) are counted."""
+    q = np.asarray(motion.rotations, dtype=float)
+    F = len(q)
+    if F < 8:
+        return 0
+    rest = 2.0 * np.degrees(np.arccos(np.clip(np.abs(q[0, 1:, 3]), 0.0, 1.0)))
+    if rest.size == 0 or np.median(rest) > rest_deg:  # fingers and toes may rest bent
+        return 0
+    step = 2.0 * np.degrees(np.arccos(np.clip(np.abs(np.sum(q[1:] * q[:-1], axis=-1)), 0.0, 1.0))).max(axis=1)
+    if step[0] <= np.percentile(step, 99):
+        return 0
+    limit = np.percentile(step[min(F - 2, int(max_seconds * motion.fps)):], 99)
+    for f in range(1, min(F - 4, int(max_seconds * motion.fps) + 1)):
+        if step[f] <= limit:
+            return f
+    return 0
+
+
 def _check_rigid(motion):
     sk = motion.skeleton
     moved = np.abs(motion.translations[:, 1:] - sk.offsets[None, 1:]).max(axis=(0, 2))
@@ -380,8 +406,13 @@ def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smooth
     spf = int(samples_per_frame)
     times = sample_times(motion.n_frames, motion.fps, spf)
     shape = skeleton_tree(sk)
-    path = path_samples(motion.fps, motion.root_positions * sk.meters_per_unit, motion.rotations,
-                        shape.jtype, shape.vidx, shape.nv, times=times, smoothing=smoothing)
+    held = bind_pose_frames(motion)
+    root_pos, rotations = motion.root_positions * sk.meters_per_unit, motion.rotations
+    if held:  # the dynamics see the first real pose instead (the poses written out are untouched)
+        root_pos, rotations = root_pos.copy(), rotations.copy()
+        root_pos[:held], rotations[:held] = root_pos[held], rotations[held]
+    path = path_samples(motion.fps, root_pos, rotations, shape.jtype, shape.vidx, shape.nv, times=times,
+                        smoothing=smoothing)
     kin = kinematics(shape, path.root_pos, path.quats, path.qd, path.qdd)
     R, o = kin.R, kin.o
     frames = (o[::spf], R[::spf])  # world frames at the motion's frames (of the smoothed path)
@@ -392,10 +423,11 @@ def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smooth
     corner_rows, corner_jt = corner_jacobians(tree, body, sk, R, o)
     terms = DynamicsTerms(tree=tree, body=body, times=times, fps=motion.fps, samples_per_frame=int(samples_per_frame),
                           R=R, o=o, W=W, corner_jt=corner_jt, corner_rows=corner_rows, contact=contact,
-                          corners=corner_positions(body, sk, R, o), friction=body.friction)
+                          corners=corner_positions(body, sk, R, o), friction=body.friction,
+                          bind_pose_frames=held)
     if noise_band and noise_band > smoothing and tree.n_root:
-        wide = path_samples(motion.fps, motion.root_positions * sk.meters_per_unit, motion.rotations,
-                            shape.jtype, shape.vidx, shape.nv, times=times, smoothing=noise_band)
+        wide = path_samples(motion.fps, root_pos, rotations, shape.jtype, shape.vidx, shape.nv, times=times,
+                            smoothing=noise_band)
         kin_w = kinematics(shape, wide.root_pos, wide.quats, wide.qd, wide.qdd)
         terms.W_wide = np.ascontiguousarray(wrenches(tree, kin_w)[:, 1:2])
         terms.R_wide, terms.o_wide = kin_w.R, kin_w.o

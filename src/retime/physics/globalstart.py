@@ -174,7 +174,7 @@ def _outside(nodes, times, speed, poff, px, py, cen, scale, mode, wc, alpha, del
 
 
 def global_start(obj: BakedObjective, duration=None, stride=None, levels=320, band=10, w_lo=0.05, w_hi=12.0,
-                 kappa=KAPPA, d_tol=1e-2, u_max=60.0, iters=60) -> GlobalStart | None:
+                 kappa=KAPPA, d_tol=1e-2, u_max=60.0, iters=60, accept=0.02) -> GlobalStart | None:
     """The grid-optimal speed profile of ``obj`` (see the module docstring), lasting ``duration``
     output seconds (None: free). Speeds are ``levels`` geometric steps from ``w_lo`` to ``w_hi``; an
     edge changes the speed by at most ``band`` steps; nodes every ``stride`` source frames (default 2,
@@ -204,7 +204,7 @@ def global_start(obj: BakedObjective, duration=None, stride=None, levels=320, ba
         for k in (kappa, kappa / 4, kappa / 16, 0.0):
             p0, T0, _ = _shortest(cost, outt, float(k), dur, 0.0, int(band))
             path, T, mu = _meet_duration(cost, outt, float(k), dur, int(band), target, p0, T0, iters)
-            if abs(T - target) <= 0.02 * target:
+            if abs(T - target) <= accept * target:
                 break
     speed = w[path]
     out = np.zeros(n, dtype=np.bool_)
