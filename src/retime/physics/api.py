@@ -28,8 +28,8 @@ Defaults, and why (measured on CMU jumps 16_06, 16_03, 13_11, 118_26; see the te
   follow anything faster, and twice-differentiated capture noise would otherwise decide how fast a
   still stance may be played (:mod:`.dynamics` uses 0.025 s by default).
 * the **capture-noise band** (:data:`.dynamics.NOISE_BAND` = 0.1 s, :data:`.dynamics.NOISE_CAP` = 2 %
-  of body weight): in stance the root rows may also use |b(0.05 s) - b(0.1 s)| p'^2, what the
-  capture's accelerations are uncertain by (see :mod:`.regions`). Without it, the sway and marker
+  of body weight): in stance the root rows may also use the local RMS of b(0.05 s) - b(0.1 s) times
+  p'^2, what the capture's accelerations are uncertain by (see :mod:`.regions`). Without it, the sway and marker
   noise of a still stance, 16- to 25-fold at 4-5x speed, decided how fast a stance could be played:
   the least feasible duration (by a time-optimal sweep through the regions) of 16_05 was 1.30 s, more
   than its half duration 1.23 s; with it 1.11 s.

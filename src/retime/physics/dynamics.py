@@ -184,7 +184,12 @@ class DynamicsTerms:
             stance = np.asarray(self.contact, dtype=bool).any(axis=1)
             # capped: near a takeoff or landing the wider low-pass blurs real impacts, not noise
             cap = NOISE_CAP * float(np.dot(f, self.tree.mass)) * 9.81
-            b_noise[stance, :nr] = np.minimum(np.abs(abc[stance, 1, :nr] - b_wide[stance, :nr]), cap)
+            diff = np.minimum(np.abs(abc[:, 1, :nr] - b_wide[:, :nr]), cap)
+            # a noise level is a local statistic: the RMS over +-NOISE_BAND (a single difference can
+            # cross zero where the noise is large)
+            win = max(1, int(round(NOISE_BAND * self.fps * self.samples_per_frame)))
+            rms = _window_rms(diff, win)
+            b_noise[stance, :nr] = np.minimum(rms[stance], cap)
         mu = self.friction if friction is None else float(friction)
         n_root = self.tree.n_root
         hi = np.zeros(self.tree.nv) if self.tau_limit is None else self.tau_limit * torque_scale
@@ -197,6 +202,15 @@ class DynamicsTerms:
             samples_per_frame=self.samples_per_frame,
             tau_ref=self.tau_ref if with_reference else None,
             lambda_ref=self.lambda_ref if with_reference else None, corners=self.corners, b_noise=b_noise)
+
+
+def _window_rms(x, half):
+    """RMS of x (n, k) over the window [i - half, i + half] of every row (zeros beyond the ends)."""
+    c = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x ** 2, axis=0)])
+    n = len(x)
+    hi = np.minimum(np.arange(n) + half + 1, n)
+    lo = np.maximum(np.arange(n) - half, 0)
+    return np.sqrt(np.maximum(c[hi] - c[lo], 0.0) / (2 * half + 1))
 
 
 @njit(cache=True)
@@ -398,7 +412,8 @@ def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smooth
 
     ``noise_band`` (seconds, > ``smoothing``; None or 0: off): the path is also low-passed at this
     width, and :meth:`DynamicsTerms.combine` reports per sample how much the root rows' p'^2
-    coefficient ``b`` differs between the two (``PathDynamics.b_noise``). Captured accelerations are
+    coefficient ``b`` differs between the two (``PathDynamics.b_noise``: the RMS over +-noise_band
+    of the capped differences, zero in flight). Captured accelerations are
     only known to about that much: twice-differentiated marker noise and the slow sway of a still
     stance look alike, and played k times faster both grow k^2-fold (see :mod:`.regions`)."""
     sk = motion.skeleton

@@ -50,9 +50,10 @@ gravity -- the modelling error biomechanics accepts for residual forces of captu
 **Capture-noise band.** A still stance played 4x faster has 16x its accelerations, and at such a
 stance the captured accelerations are mostly sway and twice-differentiated marker noise: which of
 the two decides whether a fast stance is feasible. So in stance (never in flight, where the parabola
-is known well) the root rows are also widened by ``PathDynamics.b_noise`` p'^2: how much their p'^2
-coefficient b changes between the dynamics' low-pass and a twice wider one (0.1 s), capped at 2% of
-body weight (near a takeoff or a landing the wide low-pass blurs real impacts). A timing is then
+is known well) the root rows are also widened by ``PathDynamics.b_noise`` p'^2: the local RMS
+(over +-0.1 s) of how much their p'^2 coefficient b changes between the dynamics' low-pass and a
+twice wider one (0.1 s), each difference capped at 2% of body weight (near a takeoff or a landing the
+wide low-pass blurs real impacts). A timing is then
 feasible if a path within the capture's own uncertainty can carry it. ``noise = False`` turns it off.
 With unchanged physics the fan centre keeps the source fit's least-force lambda, so "match" still
 costs nothing at the original timing.
