@@ -116,6 +116,10 @@ def run(args):
                    note=f"torque limits estimated from {args.motion}")
     if not args.quiet:
         s = result.report["summary"]
+        least = s.get("least_duration")
+        if duration is not None and least is not None and duration < least - 0.5 / m.fps:
+            print(f"note: no timing of this clip is physical in less than {least:.3f} s (the fastest timing through "
+                  f"its feasible regions); {duration:.3f} s leaves some frames outside them (see the report)")
         fl = ", ".join(f"{x:.2f}" for x in flight_speeds(result.report)) or "none"
         print(f"physics: {s['feasible_fraction'] * 100:.1f}% of output frames feasible; flight speed {fl}; "
               f"mean speed {s['mean_speed']:.2f}" + (f"; report {args.report}" if args.report else "")

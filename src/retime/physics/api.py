@@ -49,6 +49,7 @@ import numpy as np
 
 from ..errors import RetimeError
 from ..warp import TimingCurve, snap_duration
+from .fastest import fastest_timing
 from .globalstart import global_start, soften
 from .objective import BakedObjective, bake, target_torques
 from .optimize import Problem, RetimingSession, SolveInfo, check_keytimes, solve
@@ -198,8 +199,10 @@ def physics_warp(motion, duration=None, scale=None, gravity=STANDARD_GRAVITY, ma
         Ts = snap_duration(T, fps)
         spline.w = spline.w * (T / Ts)
     curve = spline.timing_curve(fps)
+    fastest = fastest_timing(regions)  # the least physical duration, for the report
     report = build_report(spline, pd, regions, fps, info=info,
                           extra={"objective_kind": objective, "gravity": [float(x) for x in np.asarray(gravity)],
                                  "mass_factors": dict(mass_factors or {}), "timings": {k: round(v, 4) for k, v in timings.items()},
-                                 "bind_pose_frames": int(getattr(terms, "bind_pose_frames", 0))})
+                                 "bind_pose_frames": int(getattr(terms, "bind_pose_frames", 0)),
+                                 "least_duration": None if not np.isfinite(fastest.duration) else round(fastest.duration, 4)})
     return PhysicsResult(curve, report, spline, session, pd, regions, obj, info, timings, terms)

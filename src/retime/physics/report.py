@@ -6,7 +6,9 @@ region in the (p'', p'^2) plane, the residual wrench (in body weights, the relax
 measure, found by an LP) that the timing needs beyond the region's bounds, whether it lies in the
 region -- ``in_region``: that residual is at most ``tol`` = 1% of body weight (0 means strictly
 inside) -- and the norm of the actuated joint torques (N m) under the fan contact model. The summary holds ``feasible_fraction`` (share of output frames in
-their region) and, per contact phase (stance / flight), its source and output span and mean speed.
+their region) and, per contact phase (stance / flight), its source and output span and mean speed;
+:func:`~retime.physics.api.physics_warp` adds ``least_duration`` (the fastest physical timing's duration,
+:mod:`retime.physics.fastest`; null when none passes the clip) and ``bind_pose_frames``.
 """
 from __future__ import annotations
 
