@@ -26,9 +26,10 @@ within 2 %. The best path's speed profile is fitted by the spline and refined by
 (:mod:`.optimize`) on the objective, with the frames the path gives up softened (:func:`soften`) so
 that the refinement keeps the violation where the grid optimum put it.
 
-Measured (CMU jumps, 0.4 of their duration, fraction of output frames feasible, grid start vs the
-paper's uniform start): 16_06 0.93 vs 0.70, 13_39 0.81 vs 0.51, 13_11 0.87 vs 0.74, 16_05 0.61 vs
-0.50; at half duration 02_04 (which starts with a T-pose) 0.91 vs 0.77.
+Measured (CMU jumps at 0.4 of their duration, below their least physical duration; fraction of
+output frames feasible, grid start vs the paper's uniform start): 16_06 0.91 vs 0.75, 13_39 0.82 vs
+0.58, 13_11 0.86 vs 0.78, 16_05 0.61 vs 0.48; at half duration 02_04 (which starts with a T-pose)
+0.89 vs 0.83.
 """
 from __future__ import annotations
 
