@@ -125,6 +125,11 @@ def prepare(motion, gravity=STANDARD_GRAVITY, mass_factors=None, objective="matc
 
 def make_problem(obj, source_duration, duration=None, keytimes=(), knot_spacing=0.05, w_min=0.02, w_max=12.0,
                  start="global", timings=None):
+    """The spline problem: knots every ``knot_spacing`` (output time, uniform), the duration (None:
+    free) and keytimes. ``start="global"`` (no keytimes) starts from the grid optimum
+    (:mod:`.globalstart`) and softens the frames it gives up in the problem's objective, for this and
+    every later re-convergence of a session built on it; ``"uniform"`` is the paper's start; keytimes
+    start from their piecewise-linear timing."""
     S = float(source_duration)
     kt = check_keytimes(keytimes, S, duration)
     n_spans = max(4, int(np.ceil(S / knot_spacing)))
