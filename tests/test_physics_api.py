@@ -113,3 +113,14 @@ def test_cli_refuses_to_overwrite_its_input(tmp_path, capsys):
     src.write_text("x")
     code = main(["physics", str(src), "-o", str(src), "--quiet"])
     assert code == 2 and "overwrite" in capsys.readouterr().err
+
+
+def test_cli_says_when_the_duration_is_below_the_least_physical_one(tmp_path, capsys):
+    src = bundled_path("16_06.amc")
+    rep = tmp_path / "r.json"
+    assert main(["physics", str(src), "-o", str(tmp_path / "a.bvh"), "--scale", "0.4", "--report", str(rep)]) == 0
+    out = capsys.readouterr().out
+    least = json.loads(rep.read_text())["summary"]["least_duration"]
+    assert 0.4 * 3.383 < least < 3.383 and f"less than {least:.3f} s" in out
+    assert main(["physics", str(src), "-o", str(tmp_path / "b.bvh"), "--scale", "0.6"]) == 0
+    assert "no timing of this clip is physical" not in capsys.readouterr().out
