@@ -142,6 +142,10 @@ def make_problem(obj, source_duration, duration=None, keytimes=(), knot_spacing=
     if gs is not None:
         T = duration if duration is not None else gs.duration
         r = gs.duration / T
+        if gs.outside is not None and gs.outside.any():
+            # the grid gives frames up: its sharp speed changes around them need control points twice
+            # as dense, or the fit spills the violation onto their neighbours
+            spline = TimingSpline.uniform(S, 2 * n_spans, duration)
         spline = TimingSpline.fit(spline.interior, S, T, None, lambda t: r * gs.speed_at_output(t * r), w_min=w_min)
         if duration is None:
             spline.fixed_T = None
