@@ -61,6 +61,6 @@ ax.set_title("16_06 at half duration: objective around the optimum, one control 
 ax.axvline(0.0, color="k", lw=0.5)
 out = Path(args.out) / "physics_landscape.png"
 save_figure(fig, out)
-worse = sum(1 for _, v in rows if np.any(v < -1e-6))
-print(f"  {len(rows)} control points probed; {worse} of them find a lower objective nearby "
+lower = sum(1 for _, v in rows if np.any(v < -1e-6))
+print(f"  {len(rows)} control points probed; {lower} of them find a lower objective nearby "
       f"(a neighbouring minimum) -> {out}")

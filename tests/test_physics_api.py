@@ -21,10 +21,12 @@ def jump():
     return m, dynamics_terms(m, smoothing=DEFAULT_SMOOTHING)
 
 
-def test_half_duration_keeps_the_flight_at_natural_speed(jump):
-    """Fig. 1: half the duration; idle time absorbs the speed-up, the flight stays near 1x."""
+@pytest.mark.parametrize("start", ["global", "uniform"])
+def test_half_duration_keeps_the_flight_at_natural_speed(jump, start):
+    """Fig. 1: half the duration; idle time absorbs the speed-up, the flight stays near 1x (from the
+    grid start and from the paper's uniform one)."""
     m, terms = jump
-    r = physics_warp(m, scale=0.5, terms=terms)
+    r = physics_warp(m, scale=0.5, terms=terms, start=start)
     s = r.report["summary"]
     assert r.curve.duration == pytest.approx(m.duration / 2, abs=0.5 / m.fps)
     assert s["mean_speed"] == pytest.approx(2.0, rel=0.01)
@@ -124,3 +126,11 @@ def test_cli_says_when_the_duration_is_below_the_least_physical_one(tmp_path, ca
     assert 0.4 * 3.383 < least < 3.383 and f"less than {least:.3f} s" in out
     assert main(["physics", str(src), "-o", str(tmp_path / "b.bvh"), "--scale", "0.6"]) == 0
     assert "no timing of this clip is physical" not in capsys.readouterr().out
+
+
+def test_an_unknown_start_is_refused(jump):
+    from retime.errors import RetimeError
+
+    m, terms = jump
+    with pytest.raises(RetimeError, match="unknown start"):
+        physics_warp(m, scale=0.5, terms=terms, start="random")

@@ -31,8 +31,8 @@ Defaults, and why (measured on CMU jumps 16_06, 16_03, 13_11, 118_26; see the te
   of body weight): in stance the root rows may also use the local RMS of b(0.05 s) - b(0.1 s) times
   p'^2, what the capture's accelerations are uncertain by (see :mod:`.regions`). Without it, the sway and marker
   noise of a still stance, 16- to 25-fold at 4-5x speed, decided how fast a stance could be played:
-  the least feasible duration (by a time-optimal sweep through the regions) of 16_05 was 1.30 s, more
-  than its half duration 1.23 s; with it 1.11 s.
+  the least physical duration (:mod:`.fastest`) of 16_05 was 1.30 s, more than its half duration
+  1.23 s; with it 1.20 s.
 * ``start = "global"``: the spline starts from the grid optimum of the same objective
   (:mod:`.globalstart`, dynamic programming over source frame x speed, which puts a violation that
   cannot be avoided on few output frames) instead of the uniform timing; ``"uniform"`` is the paper's
@@ -142,14 +142,14 @@ def make_problem(obj, source_duration, duration=None, keytimes=(), knot_spacing=
     if gs is not None:
         T = duration if duration is not None else gs.duration
         r = gs.duration / T
-        if gs.outside is not None and gs.outside.any():
-            # the grid gives frames up: its sharp speed changes around them need control points twice
-            # as dense, or the fit spills the violation onto their neighbours
-            spline = TimingSpline.uniform(S, 2 * n_spans, duration)
-        spline = TimingSpline.fit(spline.interior, S, T, None, lambda t: r * gs.speed_at_output(t * r), w_min=w_min)
+        gives_up = bool(gs.outside.any())
+        # where the grid gives frames up, its sharp speed changes around them need control points twice
+        # as dense, or the fit spills the violation onto their neighbours
+        interior = TimingSpline.uniform(S, 2 * n_spans).interior if gives_up else spline.interior
+        spline = TimingSpline.fit(interior, S, T, None, lambda t: r * gs.speed_at_output(t * r), w_min=w_min)
         if duration is None:
             spline.fixed_T = None
-        if gs.outside is not None and gs.outside.any():
+        if gives_up:
             obj = soften(obj, gs.outside)
     elif kt:
         # start from the piecewise-linear keytime timing (constraints then hold up to the fit)

@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit, prange
+from scipy.ndimage import uniform_filter1d
 
 from ..errors import RetimeError
 from .body import Body, load_body, skeleton_tree
@@ -82,7 +83,7 @@ class PathDynamics:
     tau_ref: np.ndarray | None = None  # (n, nv) torques of the original timing (original physics)
     lambda_ref: np.ndarray | None = None  # (n, K) the contact forces behind tau_ref
     corners: np.ndarray | None = None  # (n, 8, 3) world positions of the sole corners
-    b_noise: np.ndarray | None = None  # (n, nv) |b - b of the wider low-pass| on the root rows (capture noise)
+    b_noise: np.ndarray | None = None  # (n, nv) capture-noise band of b on the root rows in stance (see combine)
 
     @property
     def n_samples(self) -> int:
@@ -122,8 +123,8 @@ class DynamicsTerms:
     tau_limit: np.ndarray | None = None  # (nv,) symmetric limits at torque scale 1
     tau_ref: np.ndarray | None = None
     lambda_ref: np.ndarray | None = None
-    # the b-term wrenches (n, 1, nb, 6) and frames of the path low-passed at noise_band (see NOISE_BAND)
     bind_pose_frames: int = 0  # leading frames held at the first real pose (see bind_pose_frames)
+    # the b-term wrenches (n, 1, nb, 6) and frames of the path low-passed at noise_band (see NOISE_BAND)
     W_wide: np.ndarray | None = None
     R_wide: np.ndarray | None = None
     o_wide: np.ndarray | None = None
@@ -188,7 +189,7 @@ class DynamicsTerms:
             # a noise level is a local statistic: the RMS over +-NOISE_BAND (a single difference can
             # cross zero where the noise is large)
             win = max(1, int(round(NOISE_BAND * self.fps * self.samples_per_frame)))
-            rms = _window_rms(diff, win)
+            rms = np.sqrt(uniform_filter1d(diff ** 2, 2 * win + 1, axis=0, mode="constant"))
             b_noise[stance, :nr] = np.minimum(rms[stance], cap)
         mu = self.friction if friction is None else float(friction)
         n_root = self.tree.n_root
@@ -202,15 +203,6 @@ class DynamicsTerms:
             samples_per_frame=self.samples_per_frame,
             tau_ref=self.tau_ref if with_reference else None,
             lambda_ref=self.lambda_ref if with_reference else None, corners=self.corners, b_noise=b_noise)
-
-
-def _window_rms(x, half):
-    """RMS of x (n, k) over the window [i - half, i + half] of every row (zeros beyond the ends)."""
-    c = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x ** 2, axis=0)])
-    n = len(x)
-    hi = np.minimum(np.arange(n) + half + 1, n)
-    lo = np.maximum(np.arange(n) - half, 0)
-    return np.sqrt(np.maximum(c[hi] - c[lo], 0.0) / (2 * half + 1))
 
 
 @njit(cache=True)
@@ -371,10 +363,11 @@ def bind_pose_frames(motion, rest_deg=2.0, max_seconds=0.25) -> int:
     """Leading frames of an exporter's bind pose to leave out of the dynamics (0: none).
 
     Some BVH exporters (e.g. the Daz-friendly CMU conversions) start with a T-pose frame, every joint
-    rotation near identity (half the joints within 2 degrees), then swing into the motion within a few frames: 90 degrees of arm in
-    40 ms, which no body does and which low-passing smears over a tenth of a second of dynamics.
-    When frame 0 is such a rest pose, the frames up to the first one whose largest joint rotation
-    step is no larger than the clip's 99th percentile (at most ``max_seconds``) are counted."""
+    rotation near identity (half the joints within 2 degrees), then swing into the motion within a
+    few frames: 90 degrees of arm in 40 ms, which no body does and which low-passing smears over a
+    tenth of a second of dynamics. When frame 0 is such a rest pose and its first step is larger than
+    the 99th percentile of the steps after ``max_seconds``, the frames up to the first step no larger
+    than that are counted."""
     q = np.asarray(motion.rotations, dtype=float)
     F = len(q)
     if F < 8:
@@ -383,10 +376,11 @@ def bind_pose_frames(motion, rest_deg=2.0, max_seconds=0.25) -> int:
     if rest.size == 0 or np.median(rest) > rest_deg:  # fingers and toes may rest bent
         return 0
     step = 2.0 * np.degrees(np.arccos(np.clip(np.abs(np.sum(q[1:] * q[:-1], axis=-1)), 0.0, 1.0))).max(axis=1)
-    if step[0] <= np.percentile(step, 99):
+    window = int(max_seconds * motion.fps)
+    limit = np.percentile(step[min(F - 2, window):], 99)  # the motion's own fastest steps
+    if step[0] <= limit:
         return 0
-    limit = np.percentile(step[min(F - 2, int(max_seconds * motion.fps)):], 99)
-    for f in range(1, min(F - 4, int(max_seconds * motion.fps) + 1)):
+    for f in range(1, min(F - 4, window + 1)):
         if step[f] <= limit:
             return f
     return 0

@@ -5,7 +5,7 @@ d(p'^2)/dp = 2 p''), and it is physical where (p'', v) lies in the frame's regio
 Between two frames p'' is taken constant, so v changes linearly: v_{i+1} = v_i + 2 ds_i p''_i. The
 sets of speeds from which the end of the clip can still be reached physically (the *controllable*
 sets, intervals because the regions are convex) are found backwards frame by frame by clipping each
-polygon with the strip ``K_lo(i+1) <= v + 2 ds u <= K_hi(i+1)``; then the greedy forward pass, as fast as
+polygon with the strip ``K_lo(i+1) <= v + 2 ds u <= K_hi(i+1)`` (the regions' own half-plane clip); then the greedy forward pass, as fast as
 each region and the next controllable set allow, is the time-optimal timing (Bobrow 1985, the
 reachability analysis of Pham & Pham's TOPP-RA 2018). Its duration is the **least physical
 duration** of the clip: asking for less leaves some frames outside their regions, whatever the
@@ -19,31 +19,14 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from .regions import _clip_halfplanes
+
 
 @dataclass
 class FastestTiming:
     duration: float  # output seconds (inf if no physical timing passes the whole clip)
     speed: np.ndarray  # (n,) playback speed p' at every frame (empty if none)
     blocked_frame: int  # -1, or the frame where no physical timing gets through
-
-
-@njit(cache=True)
-def _clip(px, py, a, b, c, ox, oy):
-    """Polygon (px, py) intersected with a u + b v <= c into (ox, oy); returns the vertex count."""
-    m = len(px)
-    k = 0
-    for i in range(m):
-        j = i + 1 if i + 1 < m else 0
-        fp = a * px[i] + b * py[i] - c
-        fq = a * px[j] + b * py[j] - c
-        if fp <= 0.0:
-            ox[k], oy[k] = px[i], py[i]
-            k += 1
-        if fp * fq < 0.0:
-            t = fp / (fp - fq)
-            ox[k], oy[k] = px[i] + t * (px[j] - px[i]), py[i] + t * (py[j] - py[i])
-            k += 1
-    return k
 
 
 @njit(cache=True)
@@ -71,19 +54,18 @@ def _fastest(offsets, vx, vy, times, speed):
     khi = np.empty(n)
     a, b = offsets[n - 1], offsets[n]
     klo[n - 1], khi[n - 1] = max(vy[a:b].min(), 0.0), vy[a:b].max()
-    cap = int(np.max(np.diff(offsets))) + 4
-    ox, oy = np.empty(cap), np.empty(cap)
-    qx, qy = np.empty(cap), np.empty(cap)
+    none = np.zeros((int(np.max(np.diff(offsets))), 0))
+    strip = np.empty((2, 3))
     for i in range(n - 2, -1, -1):
         ds = times[i + 1] - times[i]
         a, b = offsets[i], offsets[i + 1]
-        k = _clip(vx[a:b], vy[a:b], 2.0 * ds, 1.0, khi[i + 1], ox, oy)
-        if k == 0:
+        nrm = math.hypot(2.0 * ds, 1.0)  # the strip klo <= v + 2 ds u <= khi as normalized half-planes
+        strip[0, 0], strip[0, 1], strip[0, 2] = 2.0 * ds / nrm, 1.0 / nrm, khi[i + 1] / nrm
+        strip[1, 0], strip[1, 1], strip[1, 2] = -2.0 * ds / nrm, -1.0 / nrm, -klo[i + 1] / nrm
+        _, qy, _, ok = _clip_halfplanes(vx[a:b].copy(), vy[a:b].copy(), none[:b - a], strip, 0.0)
+        if not ok or len(qy) == 0:
             return math.inf, i
-        k = _clip(ox[:k], oy[:k], -2.0 * ds, -1.0, -klo[i + 1], qx, qy)
-        if k == 0:
-            return math.inf, i
-        klo[i], khi[i] = max(qy[:k].min(), 0.0), qy[:k].max()
+        klo[i], khi[i] = max(qy.min(), 0.0), qy.max()
     v = khi[0]
     speed[0] = math.sqrt(v)
     T = 0.0

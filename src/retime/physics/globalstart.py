@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from .objective import BakedObjective, _frame_eval
+from .objective import BakedObjective, _frame_parts, penalty
 
 _BIG = 1e300
 _FORBIDDEN = 1e30  # an edge cost at or above this is not allowed (fits float32)
@@ -57,7 +57,7 @@ class GlobalStart:
     duration: float  # output seconds of the path
     mu: float  # price of an output second that gave this duration
     seconds: float
-    outside: np.ndarray | None = None  # (n,) bool: frames the path leaves outside their regions
+    outside: np.ndarray  # (n,) bool: frames the path leaves outside their regions
 
     def output_times(self) -> np.ndarray:
         """Output time of every node (v linear in s between nodes)."""
@@ -69,12 +69,21 @@ class GlobalStart:
         return np.interp(t, self.output_times(), self.speed)
 
 
-def speed_levels(w_lo=0.05, w_hi=8.0, levels=96) -> np.ndarray:
+def speed_levels(w_lo=0.05, w_hi=12.0, levels=320) -> np.ndarray:
     """Geometric speeds from w_lo to w_hi with 1 exactly on the grid."""
     lo, hi = math.log(w_lo), math.log(w_hi)
     step = (hi - lo) / (levels - 1)
     k0 = round(-lo / step)
     return np.exp((np.arange(levels) - k0) * step)
+
+
+@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+def _sample(m, u, v, poff, px, py, cen, scale, mode, wc, cache, alpha, delta, d_tol):
+    """The objective's integrand f at frame m and whether (u, v) lies outside its region by more than
+    d_tol (in the penalty's own measure)."""
+    g, _, _, _, _, d2, _, _ = _frame_parts(m, u, v, poff, px, py, cen, scale, mode, wc, cache)
+    pen = penalty(d2, alpha, delta)
+    return g + pen, alpha > 0.0 and pen > alpha * d_tol
 
 
 @njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
@@ -109,12 +118,10 @@ def _edge_costs(nodes, times, w, band, poff, px, py, cen, scale, mode, wc, alpha
                     ds = times[m + 1] - times[m]
                     v = vj + (vl - vj) * (times[m] - sa) / L
                     pd = math.sqrt(v)
-                    f, _, _ = _frame_eval(m, u, v, poff, px, py, cen, scale, mode, wc, cache, alpha, delta)
-                    g, _, _ = _frame_eval(m, u, v, poff, px, py, cen, scale, mode, wc, cache, 0.0, 0.0)
-                    h = f / pd + gamma * (pd + 1.0 / pd - 2.0)
-                    if alpha > 0.0 and f - g > alpha * d_tol:  # outside the region, beyond the tolerance
+                    f, out = _sample(m, u, v, poff, px, py, cen, scale, mode, wc, cache, alpha, delta, d_tol)
+                    if out:
                         o += ds / pd
-                    c += ds * h
+                    c += ds * (f / pd + gamma * (pd + 1.0 / pd - 2.0))
                 cost[e, j, k] = c
                 outt[e, j, k] = o
                 dur[e, j, k] = 2.0 * L / (w[j] + w[l])  # exact for v linear in s
@@ -170,9 +177,7 @@ def _outside(nodes, times, speed, poff, px, py, cen, scale, mode, wc, alpha, del
         u = (vl - vj) / (2.0 * L)
         for m in range(ia, ib + 1 if e == len(nodes) - 2 else ib):
             v = vj + (vl - vj) * (times[m] - sa) / L
-            f, _, _ = _frame_eval(m, u, v, poff, px, py, cen, scale, mode, wc, cache, alpha, delta)
-            g, _, _ = _frame_eval(m, u, v, poff, px, py, cen, scale, mode, wc, cache, 0.0, 0.0)
-            out[m] = f - g > alpha * d_tol
+            out[m] = _sample(m, u, v, poff, px, py, cen, scale, mode, wc, cache, alpha, delta, d_tol)[1]
 
 
 def global_start(obj: BakedObjective, duration=None, stride=None, levels=320, band=10, w_lo=0.05, w_hi=12.0,
@@ -203,8 +208,10 @@ def global_start(obj: BakedObjective, duration=None, stride=None, levels=320, ba
         # the price of infeasible output time makes the duration jump with mu (the Lagrangian only
         # reaches the convex hull of the duration/cost front): lower it until the duration is met
         target = float(duration)
+        p0, T0 = path, T
         for k in (kappa, kappa / 4, kappa / 16, 0.0):
-            p0, T0, _ = _shortest(cost, outt, float(k), dur, 0.0, int(band))
+            if k != kappa:  # the free-duration optimum at this price (at kappa: found above)
+                p0, T0, _ = _shortest(cost, outt, float(k), dur, 0.0, int(band))
             path, T, mu = _meet_duration(cost, outt, float(k), dur, int(band), target, p0, T0, iters)
             if abs(T - target) <= accept * target:
                 break

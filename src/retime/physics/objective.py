@@ -387,8 +387,10 @@ def _edge_proj(p0, nv, e, px, py, u, v):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", inline="always")
-def _frame_eval(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache, alpha, delta):
-    """f, df/du, df/dv of frame i at (u, v) = (p'', p'^2) (polygon and centre in the frame's metric)."""
+def _frame_parts(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache):
+    """Frame i at (u, v) = (p'', p'^2): the torque term g and its gradient (gu, gv), the offset (du, dv)
+    from the region's closest point and its square d2 (in the frame's metric, which scales u by su
+    and v by sv)."""
     su, sv = scale[i, 0], scale[i, 1]
     u, v = su * u0, sv * v0
     p0, p1 = poff[i], poff[i + 1]
@@ -454,7 +456,24 @@ def _frame_eval(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache, alpha, del
     gu = 2.0 * w1 * u0 + w2 * v0 + w4
     gv = 2.0 * w0 * v0 + w2 * u0 + w3
     du, dv = u - qx, v - qy
-    d2 = du * du + dv * dv
+    return g, gu, gv, du, dv, du * du + dv * dv, su, sv
+
+
+@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+def penalty(d2, alpha, delta):
+    """The feasibility term of a squared distance d2: alpha d2 (Eq. 14, delta <= 0) or the exact penalty
+    alpha (sqrt(d2 + delta^2) - delta)."""
+    if d2 == 0.0:
+        return 0.0
+    if delta <= 0.0:
+        return alpha * d2
+    return alpha * (math.sqrt(d2 + delta * delta) - delta)
+
+
+@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+def _frame_eval(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache, alpha, delta):
+    """f, df/du, df/dv of frame i at (u, v) = (p'', p'^2) (polygon and centre in the frame's metric)."""
+    g, gu, gv, du, dv, d2, su, sv = _frame_parts(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache)
     if d2 == 0.0:  # inside the region: only the torque term
         return g, gu, gv
     if delta <= 0.0:
@@ -661,10 +680,9 @@ def evaluate_c(obj: BakedObjective, spline, c, T, grad=False):
 
 def frame_terms(obj: BakedObjective, i, u, v):
     """(distance to the region in the objective's metric, torque term) of frame i at (u, v)."""
-    args = (obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc, obj.cache)
-    f, _, _ = _frame_eval(int(i), float(u), float(v), *args, 0.0, 0.0)
-    fa, _, _ = _frame_eval(int(i), float(u), float(v), *args, 1.0, 0.0)
-    return math.sqrt(max(fa - f, 0.0)), f
+    g, _, _, _, _, d2, _, _ = _frame_parts(int(i), float(u), float(v), obj.poff, obj.px, obj.py, obj.cen, obj.scale,
+                                           obj.mode, obj.wc, obj.cache)
+    return math.sqrt(d2), g
 
 
 def frame_gradient(obj: BakedObjective, i, u, v):
