@@ -159,7 +159,7 @@ def test_feet_named_in_body_file(tmp_path):
                                              "Yrotation"]] + [["Zrotation", "Xrotation", "Yrotation"]] * 8,
                   end_sites=[(3, np.array([0, -0.05, 0.15])), (6, np.array([0, -0.05, 0.15])),
                              (8, np.array([0, 0.2, 0]))])
-    with pytest.raises(RetimeError, match=r"cannot find the left foot.*\[feet.left\]"):
+    with pytest.raises(RetimeError, match=r"two-legged character.*\[feet.left\]"):
         find_feet(sk)
     path = tmp_path / "body.toml"
     path.write_text('[feet.left]\njoint = "paw_a"\n[feet.right]\njoint = "paw_b"\n', encoding="utf-8")

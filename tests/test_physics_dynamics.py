@@ -339,8 +339,11 @@ def test_short_and_non_rigid_motions(jump):
     with pytest.raises(RetimeError, match="at least 4 frames"):
         path_dynamics(jump.frames(slice(0, 3)))
     stretched = jump.replace(translations=jump.translations.copy())
-    stretched.translations[7, 3] *= 1.1  # the left knee slides along the femur in frame 7
-    with pytest.raises(RetimeError, match="'ltibia'.*frame 7"):
+    stretched.translations[7, 3] *= 1.1  # the left knee slides along the femur in frame 7: made rigid, reported
+    terms = dynamics_terms(stretched, reference=False)
+    assert any("'ltibia' stretches by up to 4." in n and "frame 7" in n for n in terms.conform_notes), terms.conform_notes
+    stretched.translations[7, 3] *= 1.3  # 43 %: refused, with the stretch and what to do
+    with pytest.raises(RetimeError, match=r"'ltibia' stretches by up to 1\d\.\d cm \(\d+% of its 39.7 cm bone\) at frame 7.*re-export"):
         path_dynamics(stretched)
 
 

@@ -53,7 +53,8 @@ def register(sub):
     add_output_args(p)
     add_duration_args(p)
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--gravity", type=_vector3, metavar="X,Y,Z", help="gravity vector in m/s^2 (y is up; default 0,-9.81,0)")
+    g.add_argument("--gravity", type=_vector3, metavar="X,Y,Z", help="gravity vector in m/s^2 in the file's axes (default 9.81 down its up axis, "
+                   "detected or given by --up)")
     g.add_argument("--gravity-scale", type=positive_float, metavar="G", help="gravity times G (0.25: a quarter of the gravity)")
     p.add_argument("--mass", type=_mass, action="append", default=[], metavar="SEGMENT=FACTOR",
                    help="multiply a segment's mass (skeleton joint name, e.g. lfemur=10); repeat for several")
@@ -87,11 +88,13 @@ def run(args):
     m = load_input(args)
     if m.n_frames < 4:
         raise RetimeError(f"{args.motion}: physics needs at least 4 frames, the motion has {m.n_frames}")
-    gravity = (0.0, -9.81, 0.0)
+    from ..motion.frame import up_vector
+
+    gravity = None  # 9.81 down the file's up axis
     if args.gravity is not None:
         gravity = args.gravity
     elif args.gravity_scale is not None:
-        gravity = (0.0, -9.81 * args.gravity_scale, 0.0)
+        gravity = tuple(-9.81 * args.gravity_scale * up_vector(m.skeleton.up))
     masses = {}
     for name, f in args.mass:
         if name not in m.skeleton.names:

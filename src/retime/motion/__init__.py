@@ -4,6 +4,7 @@ from pathlib import Path
 from ..errors import FormatError
 from .asf import read_amc, read_asf
 from .bvh import read_bvh, write_bvh
+from .frame import detect_frame
 from .fk import end_site_positions, forward_kinematics
 from .model import Motion, Skeleton
 from .quat import slerp
@@ -11,20 +12,37 @@ from .quat import slerp
 READABLE = (".bvh", ".amc")
 
 
-def load_motion(path, fps=None, asf=None) -> Motion:
+def load_motion(path, fps=None, asf=None, up=None, units=None, angles=None) -> Motion:
     """Load a BVH or AMC file. AMC files find ``X.asf`` beside ``X_NN.amc`` unless ``asf`` is given;
-    they carry no frame rate, so ``fps`` defaults to CMU's 120 Hz."""
+    they carry no frame rate, so ``fps`` defaults to CMU's 120 Hz.
+
+    The up axis and length unit are detected from the motion (:mod:`.frame`) and recorded on the
+    skeleton (``up``, ``meters_per_unit``, ``frame``); ``up`` ('y', '-z', ...) and ``units`` ('cm',
+    'in', ... or metres per unit) override the detection, ``angles`` ('deg' or 'rad') a BVH's
+    rotation unit (default: detected)."""
     path = Path(path)
     if fps is not None and not (fps > 0):
         raise FormatError(path, f"frame rate must be positive, got {fps}")
     suffix = path.suffix.lower()
     if suffix == ".bvh":
-        return read_bvh(path, fps=fps)
+        return _with_frame(path, read_bvh(path, fps=fps, angles=angles), up, units, None)
     if suffix == ".amc":
-        return read_amc(path, asf=asf, fps=fps)
+        return _with_frame(path, read_amc(path, asf=asf, fps=fps), up, units, 1.0)
     if suffix == ".asf":
         raise FormatError(path, "is a skeleton without motion; load the .amc file (it finds this .asf)")
     raise FormatError(path, f"unknown motion format {suffix or '(no extension)'!r}; retime reads .bvh and .amc")
+
+
+def _with_frame(path, motion, up, units, declared):
+    try:
+        guess = detect_frame(motion, up=up, units=units, declared_units=declared)
+    except ValueError as e:
+        raise FormatError(path, str(e)) from None
+    sk = motion.skeleton
+    if guess.unit_confidence == "unknown":  # not a biped: keep the rest-pose guess
+        guess.meters_per_unit = sk.meters_per_unit
+    sk.up, sk.meters_per_unit, sk.frame = guess.up, guess.meters_per_unit, guess
+    return motion
 
 
 def save_bvh(motion: Motion, path) -> None:

@@ -167,8 +167,24 @@ def _floats(path, tokens, lineno, what):
 _HEADER = re.compile(r"^(frames\s*:|frame\s*time\s*:)\s*(\S*)", re.IGNORECASE)
 
 
-def read_bvh(path, fps=None) -> Motion:
-    """Read a BVH file. ``fps`` overrides the file's Frame Time."""
+RADIAN_LIMIT = 2 * np.pi * 1.01
+
+
+def rotation_unit(skeleton, values) -> str:
+    """'rad' when every rotation channel stays within +-2 pi and some of them move by more than
+    0.05 (degrees that small would be a frozen pose; some exporters, Kinect's, write radians)."""
+    cols = [k for k, c in enumerate(c for chans in skeleton.channels for c in chans) if c in ROTATION_CHANNELS]
+    if not cols or values.shape[0] < 2:
+        return "deg"
+    rot = values[:, cols]
+    if np.abs(rot).max() <= RADIAN_LIMIT and np.ptp(rot, axis=0).max() > 0.05:
+        return "rad"
+    return "deg"
+
+
+def read_bvh(path, fps=None, angles=None) -> Motion:
+    """Read a BVH file. ``fps`` overrides the file's Frame Time; ``angles`` ('deg', 'rad', None:
+    detected, see :func:`rotation_unit`) the rotation channels' unit (``skeleton.angles``)."""
     text = read_text(path)
     lines = _lines(text)
     h, i = _parse_hierarchy(path, lines)
@@ -211,7 +227,10 @@ def read_bvh(path, fps=None) -> Motion:
     skeleton = Skeleton(names=h.names, parents=np.array(h.parents), offsets=offsets, channels=h.channels,
                         end_sites=end_sites, source=str(path))
     skeleton.meters_per_unit = guess_meters_per_unit(rest_height(skeleton))
-    rotations, translations = channels_to_pose(skeleton, values)
+    if angles not in (None, "deg", "rad"):
+        raise FormatError(path, f"angles must be 'deg' or 'rad', got {angles!r}")
+    skeleton.angles = angles or rotation_unit(skeleton, values)
+    rotations, translations = channels_to_pose(skeleton, values, degrees=skeleton.angles == "deg")
     return Motion(skeleton, rotations, translations, fps)
 
 
@@ -249,7 +268,7 @@ def _parse_frames(path, data_lines, n_channels):
     raise FormatError(path, "cannot read the frame values", data_lines[0][0])
 
 
-def channels_to_pose(skeleton, values):
+def channels_to_pose(skeleton, values, degrees=True):
     """Per-frame channel values (F, C) -> local rotations (F, J, 4) and translations (F, J, 3)."""
     n_frames = values.shape[0]
     n_joints = skeleton.n_joints
@@ -273,7 +292,7 @@ def channels_to_pose(skeleton, values):
         joints = [j for j, _ in members]
         cols = np.array([c for _, c in members])  # (G, k)
         # BVH channels rotate about the joint's own (moving) axes in the listed order: intrinsic.
-        rotations[:, joints] = euler_to_quat(seq.upper(), values[:, cols], degrees=True)
+        rotations[:, joints] = euler_to_quat(seq.upper(), values[:, cols], degrees=degrees)
     return rotations, translations
 
 

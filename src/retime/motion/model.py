@@ -38,6 +38,9 @@ class Skeleton:
     dof: list[list[str]] | None = None  # ASF dof names per joint, e.g. ['rx', 'rz']
     limits: list[list[tuple[float, float]]] | None = None  # ASF limits (degrees/units) per dof
     source: str = ""
+    up: str = "+y"  # the world axis the file calls up ('+y', '-z', ...), detected when loaded
+    angles: str = "deg"  # the unit a file's rotation channels were written in ('deg' or 'rad')
+    frame: object = None  # the FrameGuess of retime.motion.frame that set up and meters_per_unit
 
     def __post_init__(self):
         self.parents = np.asarray(self.parents, dtype=np.int64)

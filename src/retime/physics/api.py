@@ -1,6 +1,6 @@
 """Physics-based retiming in one call (McCann, Pollard, Srinivasa 2006).
 
-    result = physics_warp(motion, duration=None, gravity=(0, -9.81, 0), objective="match")
+    result = physics_warp(motion, duration=None, gravity=None, objective="match")  # gravity: down
     retimed = apply_timing(motion, result.curve)
 
 Pipeline: path dynamics of the motion (:mod:`retime.physics.dynamics`, computed once; gravity and mass
@@ -48,6 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import RetimeError
+from ..motion.frame import up_vector
 from ..warp import TimingCurve, snap_duration
 from .fastest import fastest_timing
 from .globalstart import global_start, soften
@@ -169,14 +170,30 @@ def make_problem(obj, source_duration, duration=None, keytimes=(), knot_spacing=
     return Problem(obj, spline, keytimes=kt, w_min=w_min, w_max=max(w_max, 1.5 * S / (duration or S)))
 
 
-def physics_warp(motion, duration=None, scale=None, gravity=STANDARD_GRAVITY, mass_factors=None, objective="match",
+def conformed_gravity(motion, gravity=None) -> np.ndarray:
+    """Gravity (m/s^2) given in the file's own axes (None: 9.81 down the detected up axis, see
+    :mod:`retime.motion.frame`), in the y-up world physics works in."""
+    from ..motion.conform import up_rotation
+
+    R = up_rotation(motion.skeleton.up)
+    if gravity is None:
+        return np.asarray(STANDARD_GRAVITY, dtype=float)
+    g = np.asarray(gravity, dtype=float)
+    if g.shape != (3,) or not np.all(np.isfinite(g)):
+        raise RetimeError(f"gravity must be three finite numbers, got {gravity!r}")
+    return R @ g
+
+
+def physics_warp(motion, duration=None, scale=None, gravity=None, mass_factors=None, objective="match",
                  keytimes=(), body=None, contacts=None, friction=None, torque_scale=1.0, alpha=10.0, beta=0.1,
                  method="lbfgs", knot_spacing=0.05, samples_per_frame=4, region_options=None, terms=None,
                  max_iter=3000, progress=False, gamma=0.03, metric="residual", excess=True,
                  penalty="l1", smoothing=DEFAULT_SMOOTHING, delta=1e-3, start="global") -> PhysicsResult:
     """Retime ``motion`` physically; see the module docstring. ``duration`` in seconds (or ``scale``
     times the source duration; neither: free duration). ``keytimes``: [(source s, output s)].
-    ``mass_factors``: {segment name: factor}."""
+    ``mass_factors``: {segment name: factor}. ``gravity`` (m/s^2) is in the file's own axes (None:
+    9.81 down its detected up axis); :func:`prepare` takes it in the y-up world of the conformed
+    motion (:func:`conformed_gravity`)."""
     if objective not in ("match", "minimize"):
         raise RetimeError(f"unknown objective {objective!r} (use 'match' or 'minimize')")
     if start not in ("global", "uniform"):
@@ -192,6 +209,8 @@ def physics_warp(motion, duration=None, scale=None, gravity=STANDARD_GRAVITY, ma
             raise RetimeError(f"duration must be positive, got {duration}")
         duration = snap_duration(duration, fps)
     timings = {}
+    file_gravity = -9.81 * up_vector(motion.skeleton.up) if gravity is None else np.asarray(gravity, dtype=float)
+    gravity = conformed_gravity(motion, gravity)
     terms, pd, regions, obj = prepare(motion, gravity, mass_factors, objective, body, contacts, friction, torque_scale,
                                       alpha, beta, samples_per_frame, region_options, terms, progress, timings,
                                       gamma=gamma, metric=metric, excess=excess, penalty=penalty,
@@ -210,7 +229,9 @@ def physics_warp(motion, duration=None, scale=None, gravity=STANDARD_GRAVITY, ma
     curve = spline.timing_curve(fps)
     fastest = fastest_timing(regions)  # the least physical duration, for the report
     report = build_report(spline, pd, regions, fps, info=info,
-                          extra={"objective_kind": objective, "gravity": [float(x) for x in np.asarray(gravity)],
+                          extra={"objective_kind": objective, "gravity": [float(x) for x in file_gravity],
+                                 "up": motion.skeleton.up, "meters_per_unit": float(motion.skeleton.meters_per_unit),
+                                 "conform_notes": list(getattr(terms, "conform_notes", [])),
                                  "mass_factors": dict(mass_factors or {}), "timings": {k: round(v, 4) for k, v in timings.items()},
                                  "bind_pose_frames": int(getattr(terms, "bind_pose_frames", 0)),
                                  "least_duration": None if not np.isfinite(fastest.duration) else round(fastest.duration, 4)})

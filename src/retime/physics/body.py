@@ -48,6 +48,7 @@ import numpy as np
 
 from ..errors import FormatError, RetimeError
 from ..io_util import atomic_write
+from ..motion.rig import Limbs, limbs_by_name, part_of
 from .tree import FIXED, FREE, SPHERICAL, TreeModel
 
 BODY_MASS = 70.0
@@ -78,10 +79,7 @@ DE_LEVA = {
     "foot": (0.0137, 0.4415, 0.251, 0.124),
 }
 SIDED = ("upperarm", "forearm", "hand", "thigh", "shank", "foot")
-FOOT_RE = re.compile(r"foot|ankle", re.I)
-HAND_RE = re.compile(r"hand|wrist", re.I)
-TOE_RE = re.compile(r"toe|ball", re.I)
-HEAD_RE = re.compile(r"head|neck|skull|jaw|eye", re.I)
+TOE_RE = re.compile(r"toe|ball|metatars", re.I)
 SIDES = ("left", "right")
 
 
@@ -220,21 +218,8 @@ def bone_ends(skeleton) -> np.ndarray:
     return out
 
 
-def _side(name: str) -> str | None:
-    low = name.lower()
-    if low.startswith("left") or low.endswith(("_l", ".l")) or (low[:1] == "l" and not low.startswith("low")):
-        return "left"
-    if low.startswith("right") or low.endswith(("_r", ".r")) or low[:1] == "r":
-        return "right"
-    return None
-
-
-def _depth(parents, j):
-    d = 0
-    while parents[j] >= 0:
-        j = parents[j]
-        d += 1
-    return d
+BIPED_SENTENCE = ("physics-based retiming needs a two-legged character (two legs ending in feet on the ground), "
+                  "and this skeleton is not one")
 
 
 def _descendants(parents, j):
@@ -245,73 +230,107 @@ def _descendants(parents, j):
     return out
 
 
-def _find_limb(skeleton, pattern, side, exclude=()):
-    cands = [j for j, n in enumerate(skeleton.names)
-             if pattern.search(n) and _side(n) == side and not TOE_RE.search(n) and j not in exclude]
-    if not cands:
-        return None
-    return min(cands, key=lambda j: _depth(skeleton.parents, j))
+def skeleton_limbs(skeleton) -> Limbs:
+    """The skeleton's limbs: those found when it was loaded (:mod:`retime.motion.frame`), else by name."""
+    frame = getattr(skeleton, "frame", None)
+    limbs = frame.limbs if frame is not None else limbs_by_name(skeleton)
+    if limbs is None:
+        why = getattr(frame, "biped", "") or "no joints named like feet"
+        raise RetimeError(f"{BIPED_SENTENCE} ({why}; joints: {', '.join(skeleton.names[:12])}"
+                          f"{', ...' if skeleton.n_joints > 12 else ''}). If it is one, name its feet in a body file "
+                          "([feet.left] joint = ...). Guided and linear retiming work on any skeleton.")
+    return limbs
 
 
 def find_feet(skeleton, feet_names=None) -> dict[str, tuple[int, int]]:
-    """{side: (foot joint, toe joint)} found by name; the toe joint is the foot's child named like a
-    toe (or its only child), else the foot itself. ``feet_names`` {side: (foot, toe)} overrides."""
+    """{side: (foot joint, toe joint)} of the skeleton's limbs (:func:`skeleton_limbs`); the toe
+    joint is the foot itself when there is none. ``feet_names`` {side: (foot, toe)} overrides."""
+    if feet_names and all(s in feet_names for s in SIDES):
+        limbs_feet = {}
+    else:
+        limbs_feet = skeleton_limbs(skeleton).feet
     out = {}
     for side in SIDES:
         if feet_names and side in feet_names:
             foot_name, toe_name = feet_names[side]
             foot = skeleton.index(foot_name)
-            toe = skeleton.index(toe_name) if toe_name else foot
+            out[side] = (foot, skeleton.index(toe_name) if toe_name else foot)
         else:
-            foot = _find_limb(skeleton, FOOT_RE, side)
-            if foot is None:
-                raise RetimeError(
-                    f"cannot find the {side} foot: no joint named like {'lfoot, LeftFoot, LeftAnkle' if side == 'left' else 'rfoot, RightFoot, RightAnkle'}"
-                    f" (joints: {', '.join(skeleton.names)}); name it in a body file ([feet.{side}] joint = ...)")
-            children = skeleton.children(foot)
-            toes = [c for c in children if TOE_RE.search(skeleton.names[c])]
-            toe = toes[0] if toes else (children[0] if len(children) == 1 else foot)
-        out[side] = (foot, toe)
+            out[side] = limbs_feet[side]
+    return out
+
+
+def _path_up(parents, start, stop):
+    """Joints from ``start`` up to and including ``stop`` (or to the root if stop is not above)."""
+    out = []
+    j = start
+    while j > 0:
+        out.append(j)
+        if j == stop:
+            break
+        j = int(parents[j])
     return out
 
 
 def classify_segments(skeleton, feet=None) -> dict[int, str]:
-    """de Leva segment of every joint (see the module docstring)."""
+    """de Leva segment of every joint (see the module docstring), from the skeleton's limbs."""
     parents = skeleton.parents
     feet = feet or find_feet(skeleton)
+    try:
+        limbs = skeleton_limbs(skeleton)
+    except RetimeError:
+        limbs = None
     seg: dict[int, str] = {0: "pelvis"}
-
-    def chain(start, names):
-        j = start
-        for name in names:
-            if j is None or j <= 0 or j in seg:
-                raise RetimeError(f"cannot assign the {name} segment above joint {skeleton.names[start]!r}; "
-                                  "give segment masses in a body file")
-            seg[j] = name
-            j = int(parents[j]) if parents[j] >= 0 else None
-        return j
-
     for side, (foot, _) in feet.items():
         for k in _descendants(parents, foot):
             seg[k] = "foot"
-        j = chain(int(parents[foot]), ["shank", "thigh"])
-        while j is not None and j > 0 and j not in seg:
+        leg = limbs.legs.get(side) if limbs is not None else None
+        if leg is None or leg[2] != foot:
+            p = int(parents[foot])
+            leg = (int(parents[p]) if p > 0 else p, p, foot, foot)
+        thigh, shank = leg[0], leg[1]
+        for j in _path_up(parents, int(parents[foot]), shank):
+            seg.setdefault(j, "shank")
+        above = int(parents[shank]) if shank > 0 else 0
+        for j in _path_up(parents, above, thigh):
+            seg.setdefault(j, "thigh")
+        j = int(parents[thigh]) if thigh > 0 else 0
+        while j > 0 and part_of(skeleton.names[j]) == "thigh" and j not in seg:
+            seg[j] = "thigh"
+            j = int(parents[j])
+        while j > 0 and j not in seg:
             seg[j] = "pelvis"
             j = int(parents[j])
-    for side in SIDES:
-        hand = _find_limb(skeleton, HAND_RE, side, exclude=seg)
-        if hand is None:
+    for side, (upper, fore, hand) in (limbs.arms if limbs is not None else {}).items():
+        if hand in seg:
             continue
         for k in _descendants(parents, hand):
             seg.setdefault(k, "hand")
-        chain(int(parents[hand]), ["forearm", "upperarm"])
-    for j, n in enumerate(skeleton.names):
-        if j not in seg and HEAD_RE.search(n):
-            for k in _descendants(parents, j):
-                seg.setdefault(k, "head")
+        for j in _path_up(parents, int(parents[hand]), fore):
+            seg.setdefault(j, "forearm")
+        above = int(parents[fore]) if fore > 0 else 0
+        for j in _path_up(parents, above, upper):
+            seg.setdefault(j, "upperarm")
+    heads = [j for j, n in enumerate(skeleton.names) if j not in seg and part_of(n) in ("head", "neck")]
+    if limbs is not None and limbs.head is not None and limbs.head not in seg:
+        heads.append(limbs.head)
+    for j in heads:
+        for k in _descendants(parents, j):
+            seg.setdefault(k, "head")
     for j in range(skeleton.n_joints):
         seg.setdefault(j, "trunk")
     return seg
+
+
+def _limb_side(limbs, seg, j, parents):
+    """'left' or 'right' for a joint of a sided segment: the side of the limb it hangs from."""
+    for side, chain in list(limbs.legs.items()) + list(limbs.arms.items()):
+        k = j
+        while k > 0:
+            if k in chain:
+                return side
+            k = int(parents[k])
+    return None
 
 
 def _rod_inertia(mass, vec, kt, kl):
@@ -345,10 +364,16 @@ def default_body(skeleton, mass=None, feet_names=None, motion=None, frames=None)
                 spine.add(k)
                 k = int(skeleton.parents[k])
     groups: dict[tuple[str, str | None], list[int]] = {}
+    try:
+        limbs = skeleton_limbs(skeleton)
+    except RetimeError:
+        limbs = None
     for j, s in seg.items():
         side = None
         if s in SIDED:
-            side = "left" if rest[j, 0] - rest[0, 0] > 0 else "right"
+            side = _limb_side(limbs, seg, j, skeleton.parents) if limbs is not None else None
+            if side is None:
+                side = "left" if rest[j, 0] - rest[0, 0] > 0 else "right"
             for sd, (foot, _) in feet_idx.items():
                 if j in _descendants(skeleton.parents, foot):
                     side = sd
@@ -411,6 +436,23 @@ def _mean_rotation(Rs):
     return R
 
 
+SYNTHETIC_FOOT = 0.45  # ankle-to-toe reach of a foot the rig lacks, in shank lengths (about 0.19 m)
+SYNTHETIC_ANKLE = 0.17  # ankle joint above the sole, in shank lengths (about 0.07 m)
+
+
+def _shank_length(skeleton, foot) -> float:
+    return float(np.linalg.norm(skeleton.offsets[foot])) * skeleton.meters_per_unit
+
+
+def _body_forward(skeleton, positions) -> np.ndarray:
+    """Where the body faces in the y-up world, from the thighs: up x forward = left."""
+    legs = skeleton_limbs(skeleton).legs
+    left = np.mean(positions[:, legs["left"][0]] - positions[:, legs["right"][0]], axis=0)
+    fwd = np.cross(left, [0.0, 1.0, 0.0])
+    n = np.linalg.norm(fwd)
+    return fwd / n if n > 0 else np.array([0.0, 0.0, 1.0])
+
+
 def default_foot(skeleton, side, foot, toe, frames=None, fps=None) -> Foot:
     """Sole corners of one foot (see the module docstring), built in the foot joint's frame. "Up"
     is the world y axis seen from the foot in the rest pose or, given the motion's world frames (see
@@ -435,6 +477,19 @@ def default_foot(skeleton, side, foot, toe, frames=None, fps=None) -> Foot:
         T = B + 0.4 * (B - A)
     fwd = T - A - np.dot(T - A, up) * up
     reach = float(np.linalg.norm(fwd))
+    if reach < 0.2 * _shank_length(skeleton, foot) and frames is not None:
+        # no foot bone along the ground (a rig that ends at the ankle): a foot of typical size,
+        # pointing where the body faces, its sole at a typical ankle height below the joint
+        fwd_world = _body_forward(skeleton, frames[0][idx])
+        fwd = np.mean(np.einsum("nji,j->ni", R[idx, foot], fwd_world), axis=0)
+        fwd -= np.dot(fwd, up) * up
+        if np.linalg.norm(fwd) > 1e-6:
+            shank = _shank_length(skeleton, foot)
+            reach = SYNTHETIC_FOOT * shank
+            B = T = reach * fwd / np.linalg.norm(fwd) - SYNTHETIC_ANKLE * shank * up
+            toe = foot
+            R_rel = np.eye(3)
+            fwd = T - A - np.dot(T - A, up) * up
     if reach < 1e-3:
         raise RetimeError(f"the {side} foot ({skeleton.names[foot]}) has no length along the ground; "
                           "give its sole corners in a body file")

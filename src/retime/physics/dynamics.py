@@ -124,6 +124,7 @@ class DynamicsTerms:
     tau_ref: np.ndarray | None = None
     lambda_ref: np.ndarray | None = None
     bind_pose_frames: int = 0  # leading frames held at the first real pose (see bind_pose_frames)
+    conform_notes: list = field(default_factory=list)  # what conforming the motion did (dummy root, stretch)
     # the b-term wrenches (n, 1, nb, 6) and frames of the path low-passed at noise_band (see NOISE_BAND)
     W_wide: np.ndarray | None = None
     R_wide: np.ndarray | None = None
@@ -386,16 +387,15 @@ def bind_pose_frames(motion, rest_deg=2.0, max_seconds=0.25) -> int:
     return 0
 
 
-def _check_rigid(motion):
-    sk = motion.skeleton
-    moved = np.abs(motion.translations[:, 1:] - sk.offsets[None, 1:]).max(axis=(0, 2))
-    scale = max(np.abs(sk.offsets).max(), 1e-9)
-    bad = np.flatnonzero(moved > 1e-6 * scale)
-    if len(bad):
-        j = int(bad[0]) + 1
-        frame = int(np.argmax(np.abs(motion.translations[:, j] - sk.offsets[j]).max(axis=1)))
-        raise RetimeError(f"physics needs fixed bone lengths, but joint {sk.names[j]!r} moves away from its rest "
-                          f"offset (frame {frame}); remove its position channels")
+def conformed(motion):
+    """The motion as physics sees it (:func:`retime.motion.conform.conform`: y up, one floating
+    base, rigid bones), with a bone stretch too large to make rigid as a RetimeError."""
+    from ..motion.conform import BoneStretch, conform
+
+    try:
+        return conform(motion)
+    except BoneStretch as e:
+        raise RetimeError(str(e)) from None
 
 
 def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smoothing=DEFAULT_SMOOTHING,
@@ -410,8 +410,9 @@ def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smooth
     of the capped differences, zero in flight). Captured accelerations are
     only known to about that much: twice-differentiated marker noise and the slow sway of a still
     stance look alike, and played k times faster both grow k^2-fold (see :mod:`.regions`)."""
+    conf = conformed(motion)
+    motion = conf.motion
     sk = motion.skeleton
-    _check_rigid(motion)
     spf = int(samples_per_frame)
     times = sample_times(motion.n_frames, motion.fps, spf)
     shape = skeleton_tree(sk)
@@ -433,7 +434,7 @@ def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smooth
     terms = DynamicsTerms(tree=tree, body=body, times=times, fps=motion.fps, samples_per_frame=int(samples_per_frame),
                           R=R, o=o, W=W, corner_jt=corner_jt, corner_rows=corner_rows, contact=contact,
                           corners=corner_positions(body, sk, R, o), friction=body.friction,
-                          bind_pose_frames=held)
+                          bind_pose_frames=held, conform_notes=conf.notes())
     if noise_band and noise_band > smoothing and tree.n_root:
         wide = path_samples(motion.fps, root_pos, rotations, shape.jtype, shape.vidx, shape.nv, times=times,
                             smoothing=noise_band)
