@@ -15,6 +15,42 @@ def add_motion_args(p):
     p.add_argument("--asf", metavar="SKELETON.asf", help="skeleton for an .amc file (default: X.asf beside X_NN.amc)")
     p.add_argument("--fps", type=positive_float, metavar="HZ",
                    help="input frame rate (AMC files carry none: default 120 Hz; overrides a BVH's Frame Time)")
+    add_frame_args(p)
+
+
+def add_frame_args(p):
+    p.add_argument("--up", type=up_axis, metavar="AXIS",
+                   help="the file's up axis: x, y, z, -x, -y or -z (default: detected from the motion)")
+    p.add_argument("--units", type=length_units, metavar="UNIT",
+                   help="the file's length unit: m, cm, mm, in, ft, cmu, or metres per unit such as 0.04 "
+                        "(default: detected from bone lengths and standing height)")
+    p.add_argument("--angles", choices=("deg", "rad"),
+                   help="unit of a BVH's rotation channels (default: detected; radians when every angle stays "
+                        "within +-2 pi)")
+
+
+def frame_kwargs(args) -> dict:
+    return {"up": getattr(args, "up", None), "units": getattr(args, "units", None),
+            "angles": getattr(args, "angles", None)}
+
+
+def up_axis(text):
+    from ..motion.frame import parse_up
+
+    try:
+        return parse_up(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def length_units(text):
+    from ..motion.frame import parse_units
+
+    try:
+        parse_units(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+    return text
 
 
 def add_output_args(p):
@@ -52,7 +88,7 @@ def keytime(text):
 
 
 def load_input(args):
-    return load_motion(args.motion, fps=args.fps, asf=args.asf)
+    return load_motion(args.motion, fps=args.fps, asf=args.asf, **frame_kwargs(args))
 
 
 def check_output(args, suffixes=(".bvh",)):

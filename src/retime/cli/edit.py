@@ -9,7 +9,7 @@ import webbrowser
 from pathlib import Path
 
 from ..errors import RetimeError
-from .common import positive_float
+from .common import add_frame_args, frame_kwargs, positive_float
 
 
 def register(sub):
@@ -24,6 +24,7 @@ def register(sub):
     p.add_argument("--reference", metavar="REF", help="reference motion for guided time warping (same skeleton)")
     p.add_argument("--asf", metavar="SKELETON.asf", help="skeleton for an .amc file (default: X.asf beside X_NN.amc)")
     p.add_argument("--fps", type=positive_float, metavar="HZ", help="frame rate of AMC input (default 120)")
+    add_frame_args(p)
     p.add_argument("--port", type=_port, default=0, metavar="P", help="port on 127.0.0.1 (default: a free one)")
     p.add_argument("--no-browser", action="store_true", help="do not open a browser; just print the URL")
     p.add_argument("-o", "--outdir", metavar="OUTDIR", default=None,
@@ -61,7 +62,7 @@ def run(args):
     except ImportError as e:
         raise RetimeError(f"the editor needs extra packages ({e.name} is missing): pip install 'retime[editor]'") from None
     outdir = Path(args.outdir) if args.outdir else Path("retime-edits")
-    clip = load_clip(args.motion, args.reference, fps=args.fps, asf=args.asf)
+    clip = load_clip(args.motion, args.reference, fps=args.fps, asf=args.asf, **frame_kwargs(args))
     try:
         outdir.mkdir(parents=True, exist_ok=True)
     except OSError as e:

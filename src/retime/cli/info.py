@@ -18,7 +18,19 @@ def run(args):
     print(f"frames    {m.n_frames}")
     print(f"fps       {m.fps:g}")
     print(f"duration  {m.duration:.4f} s")
-    print(f"height    {rest_height(sk) * sk.meters_per_unit:.2f} m (1 unit = {sk.meters_per_unit:g} m)")
+    g = sk.frame
+    if g is not None:
+        up_how = "given" if getattr(args, "up", None) else f"detected, {g.up_confidence:.0%} of frames agree"
+        print(f"up        {g.up} ({up_how})")
+        from ..motion.frame import UNIT_NAMES
+
+        print(f"units     {UNIT_NAMES.get(g.unit, g.unit)} (1 unit = {sk.meters_per_unit:.6g} m; {g.unit_confidence})")
+        if g.limbs is not None:
+            top = "head" if g.limbs.head is not None else "root"
+            print(f"size      {top} {g.height_m:.2f} m above the feet, legs {g.leg_m:.2f} m (limbs found by {g.limbs.how})")
+        else:
+            print(f"size      rest pose {rest_height(sk) * sk.meters_per_unit:.2f} m tall; not a biped ({g.biped})")
+    print(f"angles    {'radians (detected)' if sk.angles == 'rad' and not getattr(args, 'angles', None) else sk.angles}")
     for j, name in enumerate(sk.names):
         parent = sk.names[sk.parents[j]] if sk.parents[j] >= 0 else "-"
         print(f"  {name:<16} parent {parent:<16} dof {' '.join(sk.dof[j]) or '-'}")

@@ -4,7 +4,7 @@ from pathlib import Path
 
 from ..errors import RetimeError
 from ..io_util import check_not_input
-from .common import positive_float
+from .common import add_frame_args, frame_kwargs, positive_float
 
 EPILOG = """examples:
   retime render 16_06.amc -o 16_06.mp4
@@ -48,6 +48,7 @@ def register(sub):
     p.add_argument("--asf", metavar="SKELETON.asf", help="skeleton for .amc files (default: X.asf beside X_NN.amc)")
     p.add_argument("--input-fps", type=positive_float, metavar="HZ", help="frame rate of the motions (AMC: default 120)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    add_frame_args(p)
     p.set_defaults(func=run)
 
 
@@ -62,7 +63,7 @@ def run(args):
     if args.at is None and out_ext not in {".mp4", ".mkv", ".mov", ".gif"}:
         raise RetimeError(f"{args.output}: write a video as .mp4, .mkv, .mov or .gif (or a .png with --at SEC)")
     check_not_input(args.output, *args.motions, *args.warp, args.report, args.asf)
-    motions = [load_motion(m, fps=args.input_fps, asf=args.asf) for m in args.motions]
+    motions = [load_motion(m, fps=args.input_fps, asf=args.asf, **frame_kwargs(args)) for m in args.motions]
     panels = []  # (default label, motion, curve)
     for path, m in zip(args.motions, motions):
         panels.append((Path(path).stem, m, None))

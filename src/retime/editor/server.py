@@ -48,14 +48,14 @@ SECURITY_HEADERS = [
 ]
 
 
-def load_clip(motion_path, reference_path=None, fps=None, asf=None) -> Clip:
+def load_clip(motion_path, reference_path=None, fps=None, asf=None, up=None, units=None, angles=None) -> Clip:
     """Read the files the editor works on (the only files it ever reads besides its own)."""
-    motion = load_motion(motion_path, fps=fps, asf=asf)
+    motion = load_motion(motion_path, fps=fps, asf=asf, up=up, units=units, angles=angles)
     if motion.n_frames < 3:
         raise RetimeError(f"{motion_path}: {motion.n_frames} frame(s) have no timing to edit")
     reference = None
     if reference_path is not None:
-        reference = load_motion(reference_path, fps=fps)
+        reference = load_motion(reference_path, fps=fps, up=up, units=units, angles=angles)
         diff = motion.skeleton.same_structure(reference.skeleton)
         if diff:
             raise RetimeError(f"{reference_path}: the reference's skeleton differs from the motion's "

@@ -64,17 +64,24 @@ class GuidedResult:
 
 
 def root_frame_poses(motion: Motion, root_height: float = 0.0) -> np.ndarray:
-    """(F, J, 3) joint positions in the root's coordinate frame, in metres.
+    """(F, J, 3) joint positions in the floating base's coordinate frame (:func:`floating_base`;
+    dummy roots above it are zero rows), in metres.
 
-    With ``root_height`` > 0 one more row (F, J+1, 3) holds the root's world height (y, m) times
-    that weight in its y slot (x and z zero).
+    With ``root_height`` > 0 one more row (F, J+1, 3) holds the base's height above the ground
+    along the file's up axis (detected or given, :mod:`retime.motion.frame`; m) times that weight
+    in its y slot (x and z zero).
     """
+    from retime.motion.frame import up_vector
+    from retime.motion.rig import floating_base
+
     pos, ori = forward_kinematics(motion)
-    root = int(np.nonzero(motion.skeleton.parents < 0)[0][0])
-    rel = positions_in_root_frame(pos, pos[:, root], ori[:, root]) * float(motion.skeleton.meters_per_unit)
+    sk = motion.skeleton
+    base = floating_base(sk)
+    rel = positions_in_root_frame(pos, pos[:, base], ori[:, base]) * float(sk.meters_per_unit)
+    rel[:, :base] = 0.0
     if root_height > 0:
         h = np.zeros((rel.shape[0], 1, 3))
-        h[:, 0, 1] = pos[:, root, 1] * float(motion.skeleton.meters_per_unit) * root_height
+        h[:, 0, 1] = (pos[:, base] @ up_vector(sk.up)) * float(sk.meters_per_unit) * root_height
         rel = np.concatenate([rel, h], axis=1)
     return rel
 

@@ -11,7 +11,11 @@ FOOT_WORDS = ("foot", "toe", "ankle")
 
 
 def foot_joints(motion: Motion) -> list[int]:
-    """Indices of the joints named like feet or toes (ASF 'lfoot', 'ltoes'; BVH 'LeftFoot', ...)."""
+    """Indices of the feet and toes (the limbs found on load, :mod:`retime.motion.rig`, else the
+    joints named like feet or toes)."""
+    frame = motion.skeleton.frame
+    if frame is not None and frame.limbs is not None:
+        return sorted({j for foot, toe in frame.limbs.feet.values() for j in (foot, toe)})
     idx = [i for i, nm in enumerate(motion.skeleton.names) if any(w in nm.lower() for w in FOOT_WORDS)]
     if not idx:
         raise ValueError("no foot or toe joints found by name")
@@ -21,12 +25,14 @@ def foot_joints(motion: Motion) -> list[int]:
 def flight_phases(motion: Motion, clearance: float = 0.04, min_duration: float = 0.1):
     """Intervals [(start s, end s)] during which every foot joint is above the ground.
 
-    The ground is the lowest height any foot joint reaches in the clip (y is up); "above"
-    means higher than ``clearance`` metres over the lowest height that joint itself reaches.
+    Heights are along the skeleton's up axis (detected or given, :mod:`retime.motion.frame`);
+    "above" means higher than ``clearance`` metres over the lowest height that joint itself reaches.
     """
+    from retime.motion.frame import up_vector
+
     pos, _ = forward_kinematics(motion)
     feet = foot_joints(motion)
-    h = pos[:, feet, 1] * motion.skeleton.meters_per_unit
+    h = (pos[:, feet] @ up_vector(motion.skeleton.up)) * motion.skeleton.meters_per_unit
     base = np.percentile(h, 2, axis=0)
     air = np.all(h > base + clearance, axis=1)
     out = []

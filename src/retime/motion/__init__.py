@@ -25,15 +25,17 @@ def load_motion(path, fps=None, asf=None, up=None, units=None, angles=None) -> M
         raise FormatError(path, f"frame rate must be positive, got {fps}")
     suffix = path.suffix.lower()
     if suffix == ".bvh":
-        return _with_frame(path, read_bvh(path, fps=fps, angles=angles), up, units, None)
+        return with_detected_frame(path, read_bvh(path, fps=fps, angles=angles), up, units, None)
     if suffix == ".amc":
-        return _with_frame(path, read_amc(path, asf=asf, fps=fps), up, units, 1.0)
+        return with_detected_frame(path, read_amc(path, asf=asf, fps=fps), up, units, 1.0)
     if suffix == ".asf":
         raise FormatError(path, "is a skeleton without motion; load the .amc file (it finds this .asf)")
     raise FormatError(path, f"unknown motion format {suffix or '(no extension)'!r}; retime reads .bvh and .amc")
 
 
-def _with_frame(path, motion, up, units, declared):
+def with_detected_frame(path, motion, up=None, units=None, declared=None):
+    """``motion`` with its up axis and units detected (:mod:`.frame`) and recorded on its skeleton
+    (``up``, ``meters_per_unit``, ``frame``); ``up``/``units`` override; errors name ``path``."""
     try:
         guess = detect_frame(motion, up=up, units=units, declared_units=declared)
     except ValueError as e:

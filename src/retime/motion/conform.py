@@ -25,6 +25,7 @@ from scipy.spatial.transform import Rotation
 from .frame import up_vector
 from .model import Motion, Skeleton
 from .quat import qmul, qrot
+from .rig import floating_base
 
 MAX_STRETCH = 0.15  # of the bone's mean length
 MIN_BONE_M = 0.02  # shorter bones are judged by MAX_STRETCH_M instead
@@ -103,8 +104,7 @@ def _drop_root(skeleton: Skeleton, rotations, translations):
 
 
 def _is_dummy_root(skeleton: Skeleton) -> bool:
-    kids = np.flatnonzero(skeleton.parents == 0)
-    return skeleton.n_joints > 2 and len(kids) == 1 and not any(j == 0 for j, _ in skeleton.end_sites)
+    return floating_base(skeleton) > 0
 
 
 def _rigid(skeleton: Skeleton, translations, fps):
@@ -157,9 +157,12 @@ def conform(motion: Motion, max_stretch: float = MAX_STRETCH) -> Conformed:
     frame = sk.frame
     sk = dataclasses.replace(sk, up="+y")
     if frame is not None:
-        from .rig import limbs_by_name
+        from .rig import NotBiped, limbs_by_name
 
-        limbs = limbs_by_name(sk)
+        try:
+            limbs = limbs_by_name(sk)
+        except NotBiped:
+            limbs = None
         if limbs is None and frame.limbs is not None:  # structural limbs: shift past the removed roots
             k = len(removed)
             limbs = dataclasses.replace(

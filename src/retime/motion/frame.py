@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .fk import forward_kinematics
-from .rig import Limbs, NotBiped, find_limbs, nearest_pair_tips
+from .rig import Limbs, NotBiped, find_limbs, floating_base, nearest_pair_tips
 
 AXES = {"x": 0, "y": 1, "z": 2}
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254, "ft": 0.3048, "cmu": 0.0254 / 0.45}
@@ -128,7 +128,7 @@ def detect_units(motion, positions, limbs, up: str):
     u = up_vector(up)
     height = positions @ u
     feet = [leg[2] for leg in limbs.legs.values()]
-    top = limbs.head if limbs.head is not None else 0
+    top = limbs.head if limbs.head is not None else floating_base(motion.skeleton)
     stand = float(np.percentile(height[:, top] - height[:, feet].min(axis=1), 95))
     leg = _leg_length(motion, limbs)
     cues = []
@@ -159,14 +159,17 @@ def detect_frame(motion, up: str | None = None, units=None, declared_units: floa
     if up is None:
         from .rig import limbs_by_name
 
-        named = limbs_by_name(sk)
+        try:
+            named = limbs_by_name(sk)
+        except NotBiped:
+            named = None
         if named is not None:
-            top = named.head if named.head is not None else 0
+            top = named.head if named.head is not None else floating_base(sk)
             up, up_conf = detect_up(positions, top, [leg[2] for leg in named.legs.values()])
         else:
             tips = nearest_pair_tips(sk)
             if tips is not None:
-                up, up_conf = detect_up(positions, 0, tips)
+                up, up_conf = detect_up(positions, floating_base(sk), tips)
             else:
                 up, up_conf = "+y", 0.0
     else:

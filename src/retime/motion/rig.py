@@ -109,6 +109,18 @@ class NotBiped(Exception):
     """The skeleton is not a two-legged character (a quadruped, a prop, an arm)."""
 
 
+def floating_base(skeleton) -> int:
+    """The joint that carries the floating base: the root, or the joint below a chain of dummy
+    roots (roots with a single child joint and no end site, see :mod:`retime.motion.conform`)."""
+    j = 0
+    while skeleton.n_joints - j > 2:
+        kids = np.flatnonzero(skeleton.parents == j)
+        if len(kids) != 1 or any(e == j for e, _ in skeleton.end_sites):
+            break
+        j = int(kids[0])
+    return j
+
+
 def _depth(parents, j):
     d = 0
     while parents[j] >= 0:
@@ -169,6 +181,11 @@ def limbs_by_name(skeleton) -> Limbs | None:
     feet = {s: _named(skeleton, "foot", s) for s in SIDES}
     if any(f is None for f in feet.values()) or feet["left"] == feet["right"]:
         return None
+    for s in SIDES:  # a second foot on one side, not below the first: front and hind feet
+        others = [j for j, n in enumerate(skeleton.names) if part_of(n) == "foot" and side_and_part(n)[0] == s
+                  and feet[s] not in _ancestors(skeleton.parents, j) and j != feet[s]]
+        if others:
+            raise NotBiped(f"two {s} feet ({skeleton.names[feet[s]]}, {skeleton.names[others[0]]}): four legs")
     legs = {s: _leg_chain(skeleton, feet[s], kids) for s in SIDES}
     arms = {}
     for s in SIDES:

@@ -48,7 +48,7 @@ import numpy as np
 
 from ..errors import FormatError, RetimeError
 from ..io_util import atomic_write
-from ..motion.rig import Limbs, limbs_by_name, part_of
+from ..motion.rig import Limbs, NotBiped, limbs_by_name, part_of
 from .tree import FIXED, FREE, SPHERICAL, TreeModel
 
 BODY_MASS = 70.0
@@ -233,9 +233,13 @@ def _descendants(parents, j):
 def skeleton_limbs(skeleton) -> Limbs:
     """The skeleton's limbs: those found when it was loaded (:mod:`retime.motion.frame`), else by name."""
     frame = getattr(skeleton, "frame", None)
-    limbs = frame.limbs if frame is not None else limbs_by_name(skeleton)
+    why = getattr(frame, "biped", "")
+    try:
+        limbs = frame.limbs if frame is not None else limbs_by_name(skeleton)
+    except NotBiped as e:
+        limbs, why = None, str(e)
     if limbs is None:
-        why = getattr(frame, "biped", "") or "no joints named like feet"
+        why = why or "no joints named like feet"
         raise RetimeError(f"{BIPED_SENTENCE} ({why}; joints: {', '.join(skeleton.names[:12])}"
                           f"{', ...' if skeleton.n_joints > 12 else ''}). If it is one, name its feet in a body file "
                           "([feet.left] joint = ...). Guided and linear retiming work on any skeleton.")

@@ -1,0 +1,237 @@
+"""Every rig, every exporter: the same performance written as another rig or exporter would write it
+(turned to another up axis, in other units, renamed, under a dummy root, with 6-channel joints)
+gets the same timing curve from linear, guided and physics retiming. Metamorphic: no expected
+numbers, only the original's own curve. Also each detection and each message."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from retime.data import bundled_path
+from retime.errors import RetimeError
+from retime.guided import guided_warp
+from retime.motion import Motion, Skeleton, load_motion, save_bvh
+from retime.motion import variants as V
+from retime.motion.conform import conform
+from retime.motion.frame import UNITS
+from retime.motion.rig import limbs_by_name, part_of, side_and_part
+from retime.physics.api import physics_warp
+from retime.warp import scale_warp
+
+DEV = Path(__file__).resolve().parents[2] / "shared" / "data" / "bvh-dev"
+need_dev = pytest.mark.skipif(not DEV.is_dir(), reason="../shared/data/bvh-dev is not beside the repository")
+
+VARIANTS = {
+    "z-up": lambda m: V.turn_up(m, "+z"),
+    "-z-up": lambda m: V.turn_up(m, "-z"),
+    "x-up": lambda m: V.turn_up(m, "+x"),
+    "mm": lambda m: V.rescale(m, m.skeleton.meters_per_unit / UNITS["mm"]),
+    "inches": lambda m: V.rescale(m, m.skeleton.meters_per_unit / UNITS["in"]),
+    "metres": lambda m: V.rescale(m, m.skeleton.meters_per_unit),
+    "mixamo": lambda m: V.rename(m, "mixamo"),
+    "unreal": lambda m: V.rename(m, "unreal"),
+    "rigify": lambda m: V.rename(m, "rigify"),
+    "dummy root with the travel": lambda m: V.add_dummy_root(m, share=1.0),
+    "static dummy root": lambda m: V.add_dummy_root(m, share=0.0),
+    "travel split": lambda m: V.add_dummy_root(m, share=0.5),
+    "6 channels": lambda m: V.six_channels(m),
+}
+
+
+def _written(motion, tmp_path, name):
+    """The variant as a BVH file read back: what a user of that rig would hand retime."""
+    path = tmp_path / f"{name.replace(' ', '_')}.bvh"
+    save_bvh(motion, path)
+    return load_motion(path)
+
+
+def _curves(motion):
+    S = motion.duration
+    lin = scale_warp(S, 0.7, motion.fps)
+    gui = guided_warp(motion, duration=lin.duration)
+    phy = physics_warp(motion, scale=0.7)
+    return lin, gui, phy
+
+
+@pytest.fixture(scope="module")
+def jump():
+    return load_motion(bundled_path("16_06.amc"))
+
+
+@pytest.fixture(scope="module")
+def jump_curves(jump, tmp_path_factory):
+    # the original also goes through a BVH file, so both sides see the same 6-decimal rounding
+    original = _written(jump, tmp_path_factory.mktemp("orig"), "orig")
+    return original, _curves(original)
+
+
+@pytest.mark.parametrize("variant", list(VARIANTS))
+def test_variant_has_the_same_timing(variant, jump_curves, tmp_path):
+    original, (lin0, gui0, phy0) = jump_curves
+    v = _written(VARIANTS[variant](original), tmp_path, variant)
+    assert v.skeleton.frame.limbs is not None
+    assert np.isclose(v.skeleton.meters_per_unit * v.skeleton.frame.leg_m / v.skeleton.meters_per_unit,
+                      original.skeleton.frame.leg_m, rtol=1e-4)
+    lin, gui, phy = _curves(v)
+    t = np.linspace(0, lin0.duration, 400)
+    frame = 1.0 / original.fps
+    assert lin.duration == lin0.duration and np.allclose(lin(t), lin0(t), atol=1e-12)
+    # guided: features are positions in the floating base's frame and its height along up
+    assert np.abs(gui(t) - gui0(t)).max() < 1e-6
+    # physics: the same problem up to rounding; its optimum is flat to a few ms (1e-7 m of rounding moves it up to 0.7 frame)
+    assert phy.curve.duration == phy0.curve.duration
+    dev = np.abs(phy.curve(t) - phy0.curve(t))
+    assert dev.max() < frame and dev.mean() < 0.4 * frame, (dev.max(), dev.mean())
+    s, s0 = phy.report["summary"], phy0.report["summary"]
+    assert abs(s["feasible_fraction"] - s0["feasible_fraction"]) <= 0.02
+
+
+def test_variants_are_detected(jump_curves, tmp_path):
+    original, _ = jump_curves
+    for name, up in (("z-up", "+z"), ("-z-up", "-z"), ("x-up", "+x")):
+        v = _written(VARIANTS[name](original), tmp_path, name)
+        assert v.skeleton.up == up and v.skeleton.frame.up_confidence > 0.95
+    for name, unit in (("mm", "mm"), ("inches", "in"), ("metres", "m")):
+        v = _written(VARIANTS[name](original), tmp_path, name)
+        assert v.skeleton.frame.unit == unit and v.skeleton.frame.unit_confidence == "sure"
+    v = _written(VARIANTS["static dummy root"](original), tmp_path, "dummy")
+    c = conform(v)
+    assert c.removed_roots == ["Reference"] and c.motion.skeleton.n_joints == original.skeleton.n_joints
+    assert any("dummy root 'Reference'" in n for n in c.notes())
+
+
+def test_structure_finds_the_limbs_when_names_say_nothing(jump, tmp_path):
+    sk = jump.skeleton
+    anonymous = Motion(Skeleton([f"j{k}" for k in range(sk.n_joints)], sk.parents, sk.offsets, sk.channels,
+                                sk.end_sites, dof=sk.dof), jump.rotations, jump.translations, jump.fps)
+    v = _written(anonymous, tmp_path, "anonymous")
+    limbs = v.skeleton.frame.limbs
+    assert limbs.how == "structure"
+    named = jump.skeleton.frame.limbs
+    for side in ("left", "right"):
+        assert limbs.legs[side][2] == named.legs[side][2]  # the same foot joint, on the same side
+    assert v.skeleton.up == "+y" and v.skeleton.frame.unit == "m"
+    r = physics_warp(v, scale=0.7)
+    assert r.report["summary"]["feasible_fraction"] > 0.9
+
+
+def _quadruped(tmp_path):
+    """A four-legged animal walking in place: a horizontal spine, four 3-bone legs, neck and tail."""
+    names = ["pelvis", "spine", "chest", "neck", "head"]
+    parents = [-1, 0, 1, 2, 3]
+    offsets = [[0, 0, 0], [0, 0, 0.3], [0, 0, 0.3], [0, 0.1, 0.2], [0, 0.05, 0.15]]
+    for k, (attach, x) in enumerate([(0, 0.12), (0, -0.12), (2, 0.12), (2, -0.12)]):
+        base = len(names)
+        names += [f"leg{k}a", f"leg{k}b", f"leg{k}c"]
+        parents += [attach, base, base + 1]
+        offsets += [[x, 0, 0], [0, -0.3, 0], [0, -0.3, 0.0]]
+    F = 60
+    channels = [["Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation"]] + \
+               [["Zrotation", "Xrotation", "Yrotation"]] * (len(names) - 1)
+    sk = Skeleton(names, parents, offsets, channels, end_sites=[(len(names) - 1, np.array([0, -0.05, 0]))])
+    rot = np.zeros((F, len(names), 4))
+    rot[..., 3] = 1
+    t = np.arange(F) / 30
+    swing = 0.3 * np.sin(2 * np.pi * t)
+    for k in range(4):
+        j = 5 + 3 * k
+        sign = 1 if k in (0, 3) else -1
+        rot[:, j, 0] = np.sin(sign * swing / 2)
+        rot[:, j, 3] = np.cos(sign * swing / 2)
+    tr = np.broadcast_to(np.asarray(offsets, dtype=float), (F, len(names), 3)).copy()
+    tr[:, 0] = [0, 0.62, 0]
+    path = tmp_path / "dog.bvh"
+    save_bvh(Motion(sk, rot, tr, 30.0), path)
+    return path
+
+
+def test_a_quadruped_gets_the_biped_sentence(tmp_path):
+    m = load_motion(_quadruped(tmp_path))
+    assert m.skeleton.frame.limbs is None and "four legs" in m.skeleton.frame.biped
+    with pytest.raises(RetimeError, match="physics-based retiming needs a two-legged character.*four legs"):
+        physics_warp(m, scale=0.7)
+    g = guided_warp(m, duration=0.7 * m.duration)  # guided still works on it
+    assert g.duration == pytest.approx(0.7 * m.duration, abs=1 / m.fps)
+
+
+@pytest.mark.parametrize("name, side, part", [
+    ("mixamorig:LeftFoot", "left", "foot"), ("Beta:RightUpLeg", "right", "thigh"), ("Character1_LeftLeg", "left", "shank"),
+    ("Bip01 L Foot", "left", "foot"), ("Bip01 R Calf", "right", "shank"), ("FootLeft", "left", "foot"),
+    ("lFoot", "left", "foot"), ("thigh_l", "left", "thigh"), ("foot.L", "left", "foot"), ("DEF-shin.R", "right", "shank"),
+    ("L_Foot", "left", "foot"), ("LEFT_KNEE", "left", "shank"), ("lfemur", "left", "thigh"), ("rtibia", "right", "shank"),
+    ("lShldrBend", "left", "upperarm"), ("rForearmTwist", "right", "forearm"), ("mAnkleLeft", "left", "foot"),
+    ("mKneeRight", "right", "shank"), ("calf_r", "right", "shank"), ("ball_l", "left", "toe"),
+    ("LeftUpperLeg", "left", "thigh"), ("RightLowerLeg", "right", "shank"), ("upperarm_l", "left", "upperarm"),
+    ("lowerarm_r", "right", "forearm"), ("lclavicle", "left", "clavicle"), ("RightShoulder", "right", "clavicle"),
+    ("lowerback", None, None), ("LHipJoint", "left", None), ("HEad", None, "head"), ("mixamorig:HeadTop_End", None, None),
+    ("mixamorig:LeftHandThumb1", "left", None), ("L_Talus_RIGMESH", "left", None), ("ik_foot_l", "left", None),
+])
+def test_joint_names_of_every_convention(name, side, part):
+    assert part_of(name) == part
+    if part is not None:
+        assert side_and_part(name)[0] == side
+
+
+@need_dev
+@pytest.mark.parametrize("file, up, unit", [
+    ("01_01.bvh", "+y", "cmu"), ("AV_8Walk_Meredith_HVHA_Rep1.bvh", "+y", "in"), ("jesse_dance.bvh", "+y", "cm"),
+    ("run.bvh", "+y", "cm"), ("cart.bvh", "+y", "cm"), ("wd2_short_broad_jump.bvh", "+y", "m"),
+    ("woddy2_walk_straight_fast.bvh", "+y", "cm"), ("Gangnam Style.bvh", "+y", "cm"), ("samba_dancing.bvh", "+y", "cm"),
+    ("cxk.bvh", "+z", "mm"), ("ZombieIdel.bvh", "+y", "cm"), ("file.bvh", "+y", "mm"), ("DAZ3D.bvh", "+y", "cm"),
+])
+def test_dev_files_up_and_units(file, up, unit):
+    m = load_motion(DEV / file)
+    assert m.skeleton.up == up and m.skeleton.frame.unit == unit
+    assert m.skeleton.frame.limbs is not None and m.skeleton.frame.limbs.how == "names"
+    assert 1.1 < m.skeleton.frame.height_m < 1.8 or file.startswith("wd2")  # SNU's rig has no head
+
+
+@need_dev
+def test_unusual_scale_is_kept_and_said():
+    m = load_motion(DEV / "jumping.bvh")  # the AnimatedDrawings capture: Z-up, about 0.04 m per unit
+    assert m.skeleton.up == "+z" and m.skeleton.frame.unit_confidence == "unusual scale"
+    assert 0.035 < m.skeleton.meters_per_unit < 0.045
+
+
+@need_dev
+@pytest.mark.parametrize("file", ["wd2_short_broad_jump.bvh", "jumping.bvh"])
+@pytest.mark.parametrize("variant", ["z-up", "inches", "mixamo", "dummy root with the travel", "6 channels"])
+def test_dev_variants_have_the_same_physics_timing(file, variant, tmp_path):
+    original = _written(load_motion(DEV / file), tmp_path, "orig")
+    v = _written(VARIANTS[variant](original), tmp_path, variant)
+    a, b = physics_warp(original, scale=0.7), physics_warp(v, scale=0.7)
+    t = np.linspace(0, a.curve.duration, 300)
+    dev = np.abs(a.curve(t) - b.curve(t))
+    assert dev.max() < 1.0 / original.fps and dev.mean() < 0.4 / original.fps, (dev.max(), dev.mean())
+    ga = guided_warp(original, duration=a.curve.duration)
+    gb = guided_warp(v, duration=a.curve.duration)
+    assert np.abs(ga(t) - gb(t)).max() < 1e-6
+
+
+def test_radians_are_detected_and_can_be_given(jump, tmp_path):
+    path = tmp_path / "deg.bvh"
+    save_bvh(jump.frames(slice(0, 120)), path)
+    lines = path.read_text().splitlines()
+    start = lines.index("MOTION") + 3
+    sk = load_motion(path).skeleton
+    rot_cols = [k for k, c in enumerate(c for chans in sk.channels for c in chans) if c.endswith("rotation")]
+    rows = []
+    for ln in lines[start:]:
+        v = np.array(ln.split(), dtype=float)
+        v[rot_cols] = np.deg2rad(v[rot_cols])
+        rows.append(" ".join(f"{x:.9f}" for x in v))
+    rad = tmp_path / "rad.bvh"
+    rad.write_text("\n".join(lines[:start] + rows) + "\n")
+    a, b = load_motion(path), load_motion(rad)
+    assert a.skeleton.angles == "deg" and b.skeleton.angles == "rad"
+    assert np.allclose(np.abs(np.sum(a.rotations * b.rotations, axis=-1)), 1.0, atol=1e-6)
+    assert load_motion(rad, angles="deg").skeleton.angles == "deg"
+
+
+def test_up_and_units_can_be_given(jump, tmp_path):
+    path = tmp_path / "j.bvh"
+    save_bvh(jump.frames(slice(0, 60)), path)
+    m = load_motion(path, up="-x", units="in")
+    assert m.skeleton.up == "-x" and m.skeleton.meters_per_unit == UNITS["in"] and m.skeleton.frame.unit_confidence == "given"
+    m = load_motion(path, units="0.04")
+    assert m.skeleton.meters_per_unit == 0.04
