@@ -20,7 +20,7 @@ def run(args):
     print(f"duration  {m.duration:.4f} s")
     g = sk.frame
     if g is not None:
-        up_how = "given" if getattr(args, "up", None) else f"detected, {g.up_confidence:.0%} of frames agree"
+        up_how = "given" if g.up_given else f"detected, {g.up_confidence:.0%} of frames agree"
         print(f"up        {g.up} ({up_how})")
         from ..motion.frame import UNIT_NAMES
 

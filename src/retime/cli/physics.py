@@ -117,8 +117,12 @@ def run(args):
         terms = result.terms
         write_body(terms.body, args.write_body, torque_limits=terms.joint_torque_limits(),
                    note=f"torque limits estimated from {args.motion}")
+    s = result.report["summary"]
+    for note in s.get("conform_notes", []):
+        print(f"note: {note}")
+    for warning in s.get("warnings", []):
+        print(f"warning: {warning}")
     if not args.quiet:
-        s = result.report["summary"]
         least = s.get("least_duration")
         if duration is not None and least is not None and duration < least - 0.5 / m.fps:
             print(f"note: no timing of this clip is physical in less than {least:.3f} s (the fastest timing through "

@@ -73,11 +73,12 @@ class FrameGuess:
     height_m: float  # head (or root) above the lower foot, 95th percentile, metres (nan if unknown)
     leg_m: float  # thigh + shank, metres (nan if unknown)
     limbs: Limbs | None = None
-    biped: str = ""  # why the skeleton is not a biped ('' if it is one)
+    biped: str = ""
+    up_given: bool = False  # why the skeleton is not a biped ('' if it is one)
 
     def describe(self) -> str:
         unit = UNIT_NAMES.get(self.unit, self.unit)
-        up = (f"up {self.up} ({'given' if self.up_confidence >= 1 and self.unit_confidence == 'given' else f'{self.up_confidence:.0%} of frames agree'})")
+        up = f"up {self.up} ({'given' if self.up_given else f'{self.up_confidence:.0%} of frames agree'})"
         top = "head" if self.limbs is not None and self.limbs.head is not None else "root"
         size = f"; {top} {self.height_m:.2f} m above the feet" if np.isfinite(self.height_m) else ""
         return f"{up}; units {unit} (1 unit = {self.meters_per_unit:.6g} m, {self.unit_confidence}){size}"
@@ -156,6 +157,7 @@ def detect_frame(motion, up: str | None = None, units=None, declared_units: floa
     sk = motion.skeleton
     limbs, why = None, ""
     up_conf = 1.0
+    given_up = up is not None
     if up is None:
         from .rig import limbs_by_name
 
@@ -194,4 +196,4 @@ def detect_frame(motion, up: str | None = None, units=None, declared_units: floa
     else:
         unit, mpu, conf, stand, leg = "unknown", 1.0, "unknown", float("nan"), float("nan")
     return FrameGuess(up=up, up_confidence=float(up_conf), meters_per_unit=float(mpu), unit=unit, unit_confidence=conf,
-                      height_m=stand * mpu, leg_m=leg * mpu, limbs=limbs, biped=why)
+                      height_m=stand * mpu, leg_m=leg * mpu, limbs=limbs, biped=why, up_given=given_up)

@@ -53,6 +53,7 @@ from ..warp import TimingCurve, snap_duration
 from .fastest import fastest_timing
 from .globalstart import global_start, soften
 from .objective import BakedObjective, bake, target_torques
+from .plausibility import check_source
 from .optimize import Problem, RetimingSession, SolveInfo, check_keytimes, solve
 from .regions import RegionOptions, RegionSet, compute_regions
 from .report import build_report
@@ -215,6 +216,7 @@ def physics_warp(motion, duration=None, scale=None, gravity=None, mass_factors=N
                                       alpha, beta, samples_per_frame, region_options, terms, progress, timings,
                                       gamma=gamma, metric=metric, excess=excess, penalty=penalty,
                                       smoothing=smoothing, delta=delta)
+    source = check_source(motion, terms, regions)  # said before the retiming, by the caller
     problem = make_problem(obj, S, duration, keytimes, knot_spacing, start=start, timings=timings)
     session = RetimingSession(problem, method=method, fps=fps)
     t0 = time.perf_counter()
@@ -232,6 +234,8 @@ def physics_warp(motion, duration=None, scale=None, gravity=None, mass_factors=N
                           extra={"objective_kind": objective, "gravity": [float(x) for x in file_gravity],
                                  "up": motion.skeleton.up, "meters_per_unit": float(motion.skeleton.meters_per_unit),
                                  "conform_notes": list(getattr(terms, "conform_notes", [])),
+                                 "source_check": source.as_dict(),
+                                 "warnings": [w for w in [source.message()] if w],
                                  "mass_factors": dict(mass_factors or {}), "timings": {k: round(v, 4) for k, v in timings.items()},
                                  "bind_pose_frames": int(getattr(terms, "bind_pose_frames", 0)),
                                  "least_duration": None if not np.isfinite(fastest.duration) else round(fastest.duration, 4)})

@@ -9,8 +9,10 @@ corners ride on the foot joint's body, the toe's two on the toe joint's body.
 
 **Detection** (:func:`detect_contacts`), per point, from the motion's frames: its height is the lower
 of its two corners' heights above that point's floor, and its speed is the speed of the corners'
-midpoint. A point's floor is the 5th percentile of its height over the clip, but at most 3 cm above
-the lowest such floor of all points (a point that never touches the ground is not made to). A point
+midpoint. Heights are first taken above the local floor (:func:`local_floor`: the lowest point
+within +-0.75 s, so a platform or a drifting floor stays a floor). A point's floor is then the 5th
+percentile of that height over the clip, but at most 3 cm above the lowest such floor of all points
+(a point that never touches the ground is not made to). A point
 enters contact when it is below ``h_on`` (3 cm) and slower than ``v_on`` (1 m/s) and leaves it
 when it is above ``h_off`` (5 cm) or faster than ``v_off`` (2 m/s) (hysteresis; a swinging foot
 that skims the floor is much faster, a foot pushing off or landing is slower). Contacts and gaps
@@ -40,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 from numba import njit, prange
+from scipy.ndimage import maximum_filter1d, minimum_filter1d, uniform_filter1d
 
 from ..errors import FormatError, RetimeError
 from ..io_util import atomic_write
@@ -153,9 +156,25 @@ def point_tracks(motion, body, frames=None):
     low = np.minimum(x[:, 0::2, 1], x[:, 1::2, 1])  # (F, 4)
     mid = 0.5 * (x[:, 0::2] + x[:, 1::2])
     speed = np.linalg.norm(np.gradient(mid, axis=0), axis=-1) * motion.fps
+    low = low - local_floor(low, motion.fps)[:, None]
     floors = np.percentile(low, 5, axis=0)
     floors = np.minimum(floors, floors.min() + 0.03)
     return low - floors, speed
+
+
+LOCAL_FLOOR_S = 0.75  # half width of the window the floor is the lowest point of
+
+
+def local_floor(low, fps, half_width=LOCAL_FLOOR_S):
+    """(F,) floor height under the body: the lower envelope of the lowest contact point over windows
+    of +-``half_width`` seconds, so a platform, a slope or a drifting capture floor is still the
+    floor (a jump's flight is far shorter than the window, so its floor is the stance around it)."""
+    lowest = np.min(low, axis=1)
+    size = 2 * max(1, int(round(half_width * fps))) + 1
+    # a morphological opening: the lower envelope, which follows a slope exactly and drops
+    # the raised stretches (flights, steps) shorter than the window
+    floor = maximum_filter1d(minimum_filter1d(lowest, size=size, mode="nearest"), size=size, mode="nearest")
+    return uniform_filter1d(floor, size=max(1, size // 4), mode="nearest")
 
 
 def detect_contacts(motion, body, h_on=0.03, h_off=0.05, v_on=1.0, v_off=2.0, min_frames=3,
