@@ -164,3 +164,19 @@ def test_bad_keytimes_are_refused():
         check_keytimes([(5.0, 1.0)], 3.0, 2.0)
     with pytest.raises(RetimeError, match="out of order"):
         check_keytimes([(1.0, 1.5), (2.0, 1.0)], 3.0, 2.0)
+
+
+def test_spline_fit_is_the_dense_least_squares_solution():
+    """The banded normal-equation solve of TimingSpline.fit against NumPy's dense lstsq."""
+    from scipy.interpolate import BSpline
+
+    from retime.physics.spline import banded_least_squares
+
+    rng = np.random.default_rng(3)
+    for n in (5, 60, 400):
+        k = np.sort(rng.uniform(0.01, 0.99, n))
+        tau = np.linspace(0, 1, 20 * (n + 3))
+        D = BSpline.design_matrix(tau, np.r_[0, 0, 0, k, 1, 1, 1], 2)
+        y = 1.5 + np.sin(9 * tau) + 0.1 * rng.normal(size=tau.size)
+        dense = np.linalg.lstsq(D.toarray(), y, rcond=None)[0]
+        assert np.allclose(banded_least_squares(D, y), dense, atol=1e-9)

@@ -77,3 +77,28 @@ def test_cli_prints_the_warning(jump, tmp_path, capsys):
     assert main(["physics", str(path), "-o", str(tmp_path / "o.bvh"), "--scale", "0.7", "--up", "x", "--quiet"]) == 0
     out = capsys.readouterr().out
     assert "warning: this clip is not physical as captured" in out and "--up" in out
+
+
+def _strict_json(text):
+    import json
+
+    def refuse(name):
+        raise ValueError(f"{name} is not JSON")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_report_is_valid_json_with_a_one_frame_last_phase(jump, tmp_path):
+    from retime.physics.report import write_report
+
+    m = jump.frames(slice(0, 120))
+    contact = np.ones((m.n_frames, 4), dtype=bool)
+    contact[-1] = False  # the last frame alone is a flight: a phase with no span
+    r = physics_warp(m, scale=0.7, contacts=contact)
+    path = tmp_path / "r.json"
+    write_report(r.report, path)
+    data = _strict_json(path.read_text())
+    assert all(np.isfinite(p["speed"]) for p in data["summary"]["phases"])
+    r.report["summary"]["least_duration"] = float("inf")  # any non-finite number becomes null
+    write_report(r.report, path)
+    assert _strict_json(path.read_text())["summary"]["least_duration"] is None

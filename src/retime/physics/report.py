@@ -81,11 +81,13 @@ def build_report(spline, pd, regions, fps, tol=IN_REGION_TOL, info=None, extra=N
     for in_contact, a, b in _phases(contact.any(axis=1), times):
         s0, s1 = times[a], times[min(b + 1, len(times) - 1)]
         t0, t1 = spline.inverse(np.array([s0, s1]))
+        if s1 <= s0 or t1 <= t0:  # a one-sample phase at the clip's end has no span to play
+            continue
         phases.append({
             "state": "stance" if in_contact else "flight",
             "source_start": round(float(s0), 6), "source_end": round(float(s1), 6),
             "output_start": round(float(t0), 6), "output_end": round(float(t1), 6),
-            "speed": round(float((s1 - s0) / (t1 - t0)) if t1 > t0 else float("inf"), 4),
+            "speed": round(float((s1 - s0) / (t1 - t0)), 4),
         })
     summary = {
         "feasible_fraction": round(float(inside.mean()), 4),
@@ -112,7 +114,22 @@ def flight_speeds(report) -> list[float]:
     return [p["speed"] for p in report["summary"]["phases"] if p["state"] == "flight"]
 
 
+def finite(value):
+    """The report with every NaN or infinity as null: JSON has no such numbers."""
+    if isinstance(value, dict):
+        return {k: finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite(v) for v in value]
+    if isinstance(value, (float, np.floating)):
+        return float(value) if np.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
+
+
 def write_report(report: dict, path) -> None:
+    text = json.dumps(finite(report), indent=1, allow_nan=False)  # before the file is opened
     with atomic_write(path, "w") as f:
-        json.dump(report, f, indent=1)
-        f.write("\n")
+        f.write(text + "\n")

@@ -60,9 +60,9 @@ class TimingSpline:
         k = np.asarray(interior_knots, dtype=float)
         xi1 = np.r_[0, 0, 0, k, 1, 1, 1]  # quadratic knots of p'
         tau = np.linspace(0, 1, 20 * (len(k) + 3))
-        D = BSpline.design_matrix(tau, xi1, 2).toarray()
+        D = BSpline.design_matrix(tau, xi1, 2)  # sparse, 3 nonzeros a row
         y = np.asarray(dfunc_t(tau * duration), dtype=float)
-        w, *_ = np.linalg.lstsq(D, y, rcond=None)
+        w = banded_least_squares(D, y)
         w = np.maximum(w, w_min)
         return cls(k, w, source_duration, None if duration is None else duration)
 
@@ -225,6 +225,22 @@ class TimingSpline:
         y = old.speed(tau * T)
         w, *_ = np.linalg.lstsq(D, y, rcond=None)
         self.w = np.maximum(w, w_min)
+
+
+def banded_least_squares(D, y, bandwidth=2):
+    """argmin |D w - y| for a sparse design matrix whose normal matrix D^T D is banded (a B-spline
+    basis of degree ``bandwidth``): Cholesky of the band, O(n) time and memory. A dense lstsq of a
+    2,600-frame clip's fit took 15 s and 1.3 GB."""
+    from scipy.linalg import solveh_banded
+
+    D = D.tocsc()
+    N = (D.T @ D).todia()
+    n = N.shape[0]
+    ab = np.zeros((bandwidth + 1, n))
+    for off, diag in zip(N.offsets, N.data):
+        if 0 <= off <= bandwidth:  # upper diagonals, in solveh_banded's layout
+            ab[bandwidth - off, off:] = diag[off:]
+    return solveh_banded(ab, D.T @ y)
 
 
 @njit(cache=True)
