@@ -8,12 +8,12 @@ Defaults (every value can be overridden by a TOML body file, see :func:`read_bod
 * **Segment masses**: de Leva (1996, J. Biomech. 29:1223, male table) fractions of the total:
   head+neck 6.94 %, trunk 43.46 % (pelvis 11.17 %, the rest of the trunk 32.29 %), and per side
   upper arm 2.71 %, forearm 1.62 %, hand 0.61 %, thigh 14.16 %, shank 4.33 %, foot 1.37 %.
-  Skeleton joints are assigned to these segments by structure, starting from the feet and hands
-  found by name (``lfoot``/``LeftFoot``/``LeftAnkle``/``lFoot``..., ``lwrist``/``LeftHand``...):
-  foot joint and its descendants = foot, its parent = shank, the next = thigh, joints between the
-  thigh and the root = pelvis (with the root); hand joint and descendants = hand, its parent =
-  forearm, the next = upper arm; joints named like head/neck (and descendants) = head; the rest =
-  trunk. A segment made of several joints shares its mass in proportion to bone length (side
+  Skeleton joints are assigned to these segments from the skeleton's limbs
+  (:mod:`retime.motion.rig`: by name on any naming convention, else by structure): foot joint and
+  its descendants = foot, the joints up to the shank = shank, up to the thigh (and its twist or bend
+  joints named like a thigh) = thigh, joints between the thigh and the root = pelvis (with the root);
+  hand joint and descendants = hand, up to the forearm = forearm, up to the upper arm = upper arm;
+  joints named like head/neck (and descendants) = head; the rest = trunk. A segment made of several joints shares its mass in proportion to bone length (side
   branches of the trunk, such as clavicles, count 0.3 of their length). Missing segments give their
   share to the others proportionally.
 * **Centres of mass and inertias**: each joint's body is the bone from the joint to the mean of its
