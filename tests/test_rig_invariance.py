@@ -235,3 +235,16 @@ def test_up_and_units_can_be_given(jump, tmp_path):
     assert m.skeleton.up == "-x" and m.skeleton.meters_per_unit == UNITS["in"] and m.skeleton.frame.unit_confidence == "given"
     m = load_motion(path, units="0.04")
     assert m.skeleton.meters_per_unit == 0.04
+
+
+def test_renderer_and_editor_stand_every_file_up(jump_curves, tmp_path):
+    from retime.editor.server import Clip, skeleton_payload
+    from retime.viz.render import track_from_motion
+
+    original, _ = jump_curves
+    v = _written(VARIANTS["z-up"](original), tmp_path, "zup")
+    a, b = track_from_motion(original), track_from_motion(v)
+    assert np.allclose(a.positions, b.positions, atol=1e-5)
+    pa, _ = skeleton_payload(Clip("a", original, None, None))
+    pb, _ = skeleton_payload(Clip("b", v, None, None))
+    assert np.allclose(np.frombuffer(pa, "<f4"), np.frombuffer(pb, "<f4"), atol=1e-4)

@@ -26,6 +26,7 @@ from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, Response
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from ..errors import RetimeError
+from ..motion.frame import to_y_up
 from ..motion import end_site_positions, forward_kinematics, load_motion
 from .methods import Clip, method_catalog
 from .sessions import SessionStore
@@ -68,7 +69,7 @@ def skeleton_payload(clip: Clip):
     m = clip.motion
     pos, ori = forward_kinematics(m)
     ends = end_site_positions(m, pos, ori)
-    allpos = np.concatenate([pos, ends], axis=1) * m.skeleton.meters_per_unit
+    allpos = to_y_up(np.concatenate([pos, ends], axis=1) * m.skeleton.meters_per_unit, m.skeleton)
     parents = [int(p) for p in m.skeleton.parents] + [int(j) for j, _ in m.skeleton.end_sites]
     names = list(m.skeleton.names) + [f"{m.skeleton.names[j]}_end" for j, _ in m.skeleton.end_sites]
     return allpos.astype("<f4").tobytes(), {"parents": parents, "names": names, "n_points": len(parents)}

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .frame import up_vector
+from .frame import up_rotation
 from .model import Motion, Skeleton
 from .quat import qmul, qrot
 from .rig import floating_base
@@ -74,18 +74,6 @@ class Conformed:
         if self.stretch is not None:
             out.append(f"bones made rigid at their mean length; the largest stretch: {self.stretch.describe()}")
         return out
-
-
-def up_rotation(up: str) -> np.ndarray:
-    """The rotation taking the axis ``up`` to +y (a quarter or half turn about x or z)."""
-    u = up_vector(up)
-    if u[1] == 1:
-        return np.eye(3)
-    if u[1] == -1:
-        return np.diag([1.0, -1.0, -1.0])
-    if u[2] != 0:  # about x
-        return Rotation.from_euler("x", -90 * u[2], degrees=True).as_matrix().round()
-    return Rotation.from_euler("z", 90 * u[0], degrees=True).as_matrix().round()
 
 
 def _drop_root(skeleton: Skeleton, rotations, translations):

@@ -46,6 +46,27 @@ def up_vector(up: str) -> np.ndarray:
     return v
 
 
+def up_rotation(up: str) -> np.ndarray:
+    """The rotation taking the axis ``up`` to +y (a quarter or half turn about x or z)."""
+    from scipy.spatial.transform import Rotation
+
+    u = up_vector(up)
+    if u[1] == 1:
+        return np.eye(3)
+    if u[1] == -1:
+        return np.diag([1.0, -1.0, -1.0])
+    if u[2] != 0:  # about x
+        return Rotation.from_euler("x", -90 * u[2], degrees=True).as_matrix().round()
+    return Rotation.from_euler("z", 90 * u[0], degrees=True).as_matrix().round()
+
+
+def to_y_up(positions, skeleton):
+    """World positions (..., 3) of a skeleton's motion turned so that its up axis is +y (for
+    drawing: renderers and the editor show every file standing up)."""
+    R = up_rotation(skeleton.up)
+    return positions if np.array_equal(R, np.eye(3)) else positions @ R.T
+
+
 def parse_units(text) -> tuple[str, float]:
     """'cm' -> ('cm', 0.01); '0.04' -> ('0.04 m', 0.04) (metres per unit)."""
     t = str(text).strip().lower()

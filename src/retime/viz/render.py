@@ -776,6 +776,7 @@ def track_from_motion(motion, label: str = "", curve=None, contacts=None, color=
     shown).  ``contacts``: (F, J) bool per frame of ``motion``.
     """
     from retime.motion import end_site_positions, forward_kinematics
+    from retime.motion.frame import to_y_up
 
     skeleton = motion.skeleton
     positions, orientations = forward_kinematics(motion)
@@ -786,7 +787,7 @@ def track_from_motion(motion, label: str = "", curve=None, contacts=None, color=
     for j, _ in skeleton.end_sites:
         names.append(f"{skeleton.names[j]}_end")
         parents.append(int(j))
-    positions = np.concatenate([positions, ends], axis=1) * float(skeleton.meters_per_unit)
+    positions = to_y_up(np.concatenate([positions, ends], axis=1) * float(skeleton.meters_per_unit), skeleton)
     if contacts is not None:
         contacts = np.asarray(contacts, dtype=bool)
         if contacts.shape != (motion.n_frames, skeleton.n_joints):
