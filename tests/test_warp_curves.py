@@ -226,3 +226,11 @@ def test_csv_errors_name_file_and_line(text, line, match, tmp_path):
 def test_csv_missing_file(tmp_path):
     with pytest.raises(FormatError, match="not found"):
         TimingCurve.from_csv(tmp_path / "nope.csv")
+
+
+def test_inverse_inside_a_rounding_level_rise_is_the_hold_start():
+    """Hypothesis found it: a rise of 1e-38 over two seconds is a hold; its times invert to its start."""
+    c = TimingCurve(np.array([0.0, 1.0, 3.0, 4.0]), np.array([0.0, 0.0, 1.17549435e-38, 1.0]), kind="linear")
+    t = np.linspace(0, 4, 301)
+    first = c.inverse(c(t))
+    assert np.all(first <= t + 1e-9) and np.allclose(c(first), c(t), atol=1e-10)

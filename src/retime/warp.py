@@ -99,14 +99,17 @@ class TimingCurve:
         else:
             ts = self._dense_times()
             ss = self(ts)
-        # first index with ss >= s, then interpolate inside that segment
-        k = np.clip(np.searchsorted(ss, s, side="left"), 1, len(ss) - 1)
-        s0, s1, t0, t1 = ss[k - 1], ss[k], ts[k - 1], ts[k]
+        # first index with ss >= s (to rounding: a rise of 1e-38 over a second is a hold, and a time
+        # inside it inverts to the hold's start), then interpolate inside that segment
+        eps = 1e-12 * max(1.0, float(abs(ss[-1])))
         if self._pchip is not None:
-            return self._bisect(t0, t1, s)
+            k = np.clip(np.searchsorted(ss, s, side="left"), 1, len(ss) - 1)
+            return self._bisect(ts[k - 1], ts[k], s)
+        k = np.clip(np.searchsorted(ss, s - eps, side="left"), 1, len(ss) - 1)
+        s0, s1, t0, t1 = ss[k - 1], ss[k], ts[k - 1], ts[k]
         # s1 == s0 only when s is at (or before) the first sample: the curve holds there from t = 0
-        w = np.where(s1 > s0, (s - s0) / np.where(s1 > s0, s1 - s0, 1.0), 0.0)
-        return t0 + w * (t1 - t0)
+        w = np.where(s1 - s0 > eps, (s - s0) / np.where(s1 - s0 > eps, s1 - s0, 1.0), 0.0)
+        return t0 + np.clip(w, 0.0, 1.0) * (t1 - t0)
 
     def _dense_times(self):
         sub = np.linspace(0.0, 1.0, 33)[:-1]

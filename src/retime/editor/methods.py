@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import math
+import threading
 from dataclasses import dataclass, field
 from typing import Callable, Iterator
 
@@ -110,6 +111,7 @@ class Job:
     held: int | None = None
     status: Callable[[str], None] = lambda message: None  # progress line for the page (long steps)
     keytimes: list = field(default_factory=list)  # (source, output) kept apart from the points (physics)
+    gone: Callable[[], bool] = lambda: False  # the tab has closed or the editor stops: stop shared work too
 
     def ops_since(self, version):
         """Edits after ``version``, or None if the log does not reach back that far."""
@@ -286,7 +288,7 @@ class PhysicsMethod(Method):
         from ..physics.api import make_problem  # noqa: PLC0415
         from ..physics.optimize import RetimingSession  # noqa: PLC0415
 
-        terms_pd_regions_obj = _physics_prepared(self.clip, key, job.status)
+        terms_pd_regions_obj = _physics_prepared(self.clip, key, job.status, job.gone)
         self.prepared = terms_pd_regions_obj
         obj = terms_pd_regions_obj[3]
         if dataclasses.is_dataclass(obj) and hasattr(obj, "cache"):
@@ -397,20 +399,29 @@ def _feasibility(spline, regions, fps, tol=1e-2):
     return np.where(d <= tol, 1.0, np.clip(1.0 - np.log10(np.maximum(d, tol) / tol) / 2.0, 0.0, 0.95))
 
 
-_PHYSICS_LOCK = __import__("threading").Lock()
 _PHYSICS_CACHE: dict = {}  # (id(motion), key) -> (terms, pd, regions, obj); a few entries
+_CACHE_LOCK = threading.Lock()  # guards the cache and the per-setting locks, never a computation
+_SETTING_LOCKS: dict = {}
 
 
-def _physics_prepared(clip, key, status):
-    """Dynamics, regions and objective for a clip and setting: computed once, shared by sessions."""
+def _physics_prepared(clip, key, status, gone=lambda: False):
+    """Dynamics, regions and objective for a clip and setting: computed once, shared by sessions.
+    Different settings compute side by side (the physics keeps its solver state per thread); one
+    setting is computed by one thread while the others wait for it. ``gone``: the asking
+    session's tab has closed or the editor is stopping; the computation then stops."""
     from ..physics.api import prepare  # noqa: PLC0415
 
     gravity, objective, part, factor, alpha = key
     cache_key = (id(clip.motion), key)
-    with _PHYSICS_LOCK:
+    with _CACHE_LOCK:
         if cache_key in _PHYSICS_CACHE:
             return _PHYSICS_CACHE[cache_key]
-        terms = next((v[0] for (m, _), v in _PHYSICS_CACHE.items() if m == id(clip.motion)), None)
+        setting_lock = _SETTING_LOCKS.setdefault(cache_key, threading.Lock())
+    with setting_lock:
+        with _CACHE_LOCK:
+            if cache_key in _PHYSICS_CACHE:
+                return _PHYSICS_CACHE[cache_key]
+            terms = next((v[0] for (m, _), v in _PHYSICS_CACHE.items() if m == id(clip.motion)), None)
         status("physics: computing the motion's dynamics and feasible regions (once per setting)…")
         masses = None
         if part != "none" and factor != 1.0:
@@ -418,10 +429,13 @@ def _physics_prepared(clip, key, status):
             root = sk.index(part)
             masses = {sk.names[j]: factor for j in range(sk.n_joints) if _descends(sk.parents, j, root)}
         out = prepare(clip.motion, gravity=(0.0, -gravity, 0.0), mass_factors=masses, objective=objective,
-                      alpha=alpha, terms=terms)
-        if len(_PHYSICS_CACHE) >= 6:
-            _PHYSICS_CACHE.pop(next(iter(_PHYSICS_CACHE)))
-        _PHYSICS_CACHE[cache_key] = out
+                      alpha=alpha, terms=terms, cancel=gone)
+        with _CACHE_LOCK:
+            if len(_PHYSICS_CACHE) >= 6:
+                old = next(iter(_PHYSICS_CACHE))
+                _PHYSICS_CACHE.pop(old)
+                _SETTING_LOCKS.pop(old, None)
+            _PHYSICS_CACHE[cache_key] = out
         status("")
         return out
 

@@ -16,6 +16,7 @@ import json
 import logging
 import mimetypes
 import os
+import threading
 import time
 from pathlib import Path
 
@@ -204,6 +205,7 @@ def create_app(clip: Clip, outdir, *, static_dir=STATIC_DIR, allowed_hosts=LOOPB
     @contextlib.asynccontextmanager
     async def lifespan(app):
         yield
+        store.stopping.set()  # running solves stop at their next check (between frames of the regions)
         executor.shutdown(wait=False, cancel_futures=True)
 
     app = FastAPI(title="retime edit", docs_url=None, redoc_url=None, openapi_url=None, lifespan=lifespan)
@@ -353,6 +355,7 @@ class LiveLoop:
         self.wake = asyncio.Event()
         self.seq = None
         self.send_lock = asyncio.Lock()
+        self.gone = threading.Event()  # the page closed its socket
 
     async def send(self, obj):
         async with self.send_lock:
@@ -369,6 +372,7 @@ class LiveLoop:
         except RuntimeError:  # socket closed under us
             pass
         finally:
+            self.gone.set()
             solver.cancel()
 
     async def handle(self, text):
@@ -416,7 +420,7 @@ class LiveLoop:
             def run():
                 t0 = time.perf_counter()
                 try:
-                    for sol in session.solve(snap, status=status):
+                    for sol in session.solve(snap, status=status, gone=self.gone.is_set):
                         payload = session.solution_json(sol, snap, seq)
                         payload["info"]["solve_ms"] = round((time.perf_counter() - t0) * 1000, 2)
                         put(payload)

@@ -40,7 +40,7 @@ class Snapshot:
 
 
 class Session:
-    def __init__(self, sid: str, clip: Clip, outdir, fps: float):
+    def __init__(self, sid: str, clip: Clip, outdir, fps: float, stopping: threading.Event | None = None):
         self.id = sid
         self.clip = clip
         self.outdir = outdir
@@ -57,6 +57,8 @@ class Session:
         self.exports: dict[str, object] = {}
         self.lock = threading.RLock()
         self.solve_lock = threading.Lock()  # one solve at a time per session (adapters keep state)
+        self.closed = threading.Event()  # it was evicted: its solves stop
+        self.stopping = stopping or threading.Event()  # the editor is stopping: every solve stops
         self.last_used = time.monotonic()
         self.op_log: list[tuple[int, dict]] = []  # (version, op) for stateful adapters; bounded
         self.held = None
@@ -242,15 +244,25 @@ class Session:
             self.adapters[name] = METHODS[name](self.clip)
         return self.adapters[name]
 
-    def solve(self, snap: Snapshot, cancelled=None, status=None):
-        """Run the method on a snapshot; yields solutions that are still current. Thread-safe."""
-        stale = (lambda: self.version != snap.version) if cancelled is None else cancelled
+    def solve(self, snap: Snapshot, cancelled=None, status=None, gone=None):
+        """Run the method on a snapshot; yields solutions that are still current. Thread-safe.
+        ``gone``: the page that asked has closed; the solve stops, as it does when the session is
+        evicted or the editor stops (``stopping``)."""
+        own = (lambda: self.version != snap.version) if cancelled is None else cancelled
+
+        def ended():
+            return self.stopping.is_set() or self.closed.is_set() or (gone is not None and gone())
+
+        def stale():
+            return ended() or own()
+
         with self.solve_lock:
             if stale():
                 return
             adapter = self.adapter(snap.method)
             job = Job(snap.points, snap.params, snap.duration, stale, snap.version, snap.ops, snap.held,
-                      status or (lambda message: None), list(snap.keytimes or []))
+                      status or (lambda message: None), list(snap.keytimes or []),
+                      gone=ended)
             try:
                 for sol in adapter.solve(job):
                     with self.lock:
@@ -375,15 +387,17 @@ class SessionStore:
         self.max_sessions, self.idle_seconds = max_sessions, idle_seconds
         self.sessions: dict[str, Session] = {}
         self.lock = threading.Lock()
+        self.stopping = threading.Event()  # set at shutdown
 
     def create(self) -> Session:
         with self.lock:
             self._expire()
             if len(self.sessions) >= self.max_sessions:
                 oldest = min(self.sessions.values(), key=lambda s: s.last_used)
+                oldest.closed.set()
                 del self.sessions[oldest.id]
             sid = secrets.token_urlsafe(18)
-            session = Session(sid, self.clip, self.outdir, self.fps)
+            session = Session(sid, self.clip, self.outdir, self.fps, stopping=self.stopping)
             self.sessions[sid] = session
             return session
 
@@ -397,4 +411,5 @@ class SessionStore:
     def _expire(self):
         now = time.monotonic()
         for sid in [k for k, s in self.sessions.items() if now - s.last_used > self.idle_seconds]:
+            self.sessions[sid].closed.set()
             del self.sessions[sid]

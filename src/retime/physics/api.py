@@ -88,8 +88,9 @@ DEFAULT_SMOOTHING = 0.05
 def prepare(motion, gravity=STANDARD_GRAVITY, mass_factors=None, objective="match", body=None, contacts=None,
             friction=None, torque_scale=1.0, alpha=10.0, beta=0.1, samples_per_frame=4, region_options=None,
             terms=None, progress=False, timings=None, gamma=0.03, metric="residual", excess=True,
-            w_min=0.02, w_max=12.0, penalty="l1", smoothing=DEFAULT_SMOOTHING, delta=1e-3):
-    """Dynamics, regions and the baked objective: everything but the spline."""
+            w_min=0.02, w_max=12.0, penalty="l1", smoothing=DEFAULT_SMOOTHING, delta=1e-3, cancel=None):
+    """Dynamics, regions and the baked objective: everything but the spline. ``cancel``: asked
+    between frames of the regions; True stops with :class:`.regions.Cancelled`."""
     from .dynamics import dynamics_terms
 
     timings = {} if timings is None else timings
@@ -107,7 +108,7 @@ def prepare(motion, gravity=STANDARD_GRAVITY, mass_factors=None, objective="matc
     if opts.v_max < 64.0:
         opts.v_max = 64.0
     t0 = time.perf_counter()
-    regions = compute_regions(pd, opts, reference=pd0 if changed else None, progress=progress)
+    regions = compute_regions(pd, opts, reference=pd0 if changed else None, progress=progress, cancel=cancel)
     timings["regions"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     if objective == "match":

@@ -73,6 +73,7 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -636,15 +637,24 @@ def _walk(A, zl, zu, basic, atupper, theta0, max_iter):
 # HiGHS models
 # ------------------------------------------------------------------------------------------------
 
-_POOL = {}
+_LOCAL = threading.local()  # per thread: HiGHS objects are not thread-safe, and editor or Dask threads share a process
+
+
+def _pool() -> dict:
+    """This thread's HiGHS objects and warm-start bases."""
+    pool = getattr(_LOCAL, "pool", None)
+    if pool is None:
+        pool = _LOCAL.pool = {}
+    return pool
 
 
 def _pooled_highs(kind):
     """One HiGHS object per kind and process, reused frame after frame (passModel replaces the
     model; the last basis is offered to the next frame of the same shape as a warm start)."""
-    h = _POOL.get(kind)
+    pool = _pool()
+    h = pool.get(kind)
     if h is None:
-        h = _POOL[kind] = _new_highs()
+        h = pool[kind] = _new_highs()
     return h
 
 
@@ -718,7 +728,7 @@ class FrameLP:
         self.row_hi = np.asarray(row_hi, dtype=float)
         self.h = _pooled_highs("frame")
         _pass_lp(self.h, self.A, self.col_lo, self.col_hi, self.row_lo, self.row_hi)
-        prev = _POOL.get(("basis", m, n))
+        prev = _pool().get(("basis", m, n))
         if prev is not None:
             self.h.setBasis(prev)
         self.n_solves = 0
@@ -748,7 +758,7 @@ class FrameLP:
         self.h.changeColsCost(2, self._idx2, np.array([-du, -dv]))
         if not self._run():
             return None
-        _POOL[("basis", self.m, self.n)] = self.h.getBasis()
+        _pool()[("basis", self.m, self.n)] = self.h.getBasis()
         return np.asarray(self.h.getSolution().col_value)
 
     def basis(self):
@@ -778,7 +788,7 @@ class FrameLP:
         if ok:
             sol = h.getSolution()
             x = np.asarray(sol.col_value)
-            _POOL[("basis", self.m, self.n)] = h.getBasis()
+            _pool()[("basis", self.m, self.n)] = h.getBasis()
             basic, _ = self.basis()
             if len(basic) == self.m:
                 self.center_state = (basic, np.concatenate((x, np.asarray(sol.row_value))))
@@ -955,7 +965,7 @@ def _residual_lp(a, b, c, N, lo, hi, rho, act, n_root, body_weight, opts, fix=No
     x = np.asarray(h.getSolution().col_value)
     r = np.abs(x[2 + K: 2 + K + nv] - x[2 + K + nv:])
     r[r <= 1e-9 * _row_weights(n_root, nv, body_weight, opts)] = 0.0
-    _residual_lp.last_point = (float(x[0]), float(x[1]))
+    _LOCAL.last_point = (float(x[0]), float(x[1]))  # per thread (read by the caller)
     return r, float(np.sum(r * cost_row))
 
 
@@ -1156,7 +1166,7 @@ def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_
         lo1, hi1 = _widen(lo1, hi1, extra, pad)
         level = float(np.max(np.where(extra > 0, (extra + pad) / w, 0.0)))
         relaxed = True
-        point = _residual_lp.last_point
+        point = _LOCAL.last_point
         P, L, lp, k, piv2 = _polygon(a, b, c, N, lo1, hi1, budget, act, rows, other, opts, Kall, eps)
         n_lp += k
         piv += piv2
@@ -1225,7 +1235,7 @@ _SHARED = {}
 
 def _work(frames):
     pd, ref, opts, bw, n_root = _SHARED["args"]
-    _POOL.clear()  # warm starts only within a chunk: the answer must not depend on the scheduling
+    _pool().clear()  # warm starts only within a chunk: the answer must not depend on the scheduling
     return [_one(pd, ref, i, opts, bw, n_root) for i in frames]
 
 
@@ -1245,16 +1255,16 @@ def base_bounds(pd, opts, bw, n_root):
     return lo, hi
 
 
-_BOUNDS = {}
-
-
 def _bounds_cached(pd, opts, bw, n_root):
+    cache = getattr(_LOCAL, "bounds", None)
+    if cache is None:
+        cache = _LOCAL.bounds = {}
     key = (id(pd), id(opts), bw, n_root)
-    if key not in _BOUNDS:
-        if len(_BOUNDS) > 8:
-            _BOUNDS.clear()
-        _BOUNDS[key] = (pd, base_bounds(pd, opts, bw, n_root))  # keep pd alive: ids stay unique
-    return _BOUNDS[key][1]
+    if key not in cache:
+        if len(cache) > 8:
+            cache.clear()
+        cache[key] = (pd, base_bounds(pd, opts, bw, n_root))  # keep pd alive: ids stay unique
+    return cache[key][1]
 
 
 def _one(pd, ref, i, opts, bw, n_root):
@@ -1276,13 +1286,33 @@ def _one(pd, ref, i, opts, bw, n_root):
     return r
 
 
+class Cancelled(RetimeError):
+    """The caller asked a long computation to stop (the editor's tab closed, Ctrl-C)."""
+
+
+def _may_fork() -> bool:
+    """A process pool by fork only from the main thread of a process with no other thread: a
+    fork from a thread (the editor's solver threads, Dask workers) copies locks held elsewhere and
+    the parent's signal handlers, and its pool could then hang for ever."""
+    return threading.current_thread() is threading.main_thread() and threading.active_count() == 1
+
+
+def _worker_signals():
+    import signal
+
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a pool's terminate() must end its workers
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+
+
 def compute_regions(pd, options: RegionOptions | None = None, reference=None, frames=None,
-                    progress=False) -> RegionSet:
+                    progress=False, cancel=None) -> RegionSet:
     """Feasible regions and the contact-force model (centre LP) of every sample of ``pd``.
 
     ``reference``: the path dynamics of the *original* physics when ``pd`` has changed parameters
     (gravity, masses, ...); the frames' residual budgets and the original timing's contact forces
-    (``lam0``) come from it. ``None``: ``pd`` is the original physics."""
+    (``lam0``) come from it. ``None``: ``pd`` is the original physics. ``cancel``: a function
+    asked between frames; when it returns True the computation stops with :class:`Cancelled`.
+    A process pool is used only from a lone main thread (:func:`_may_fork`)."""
     import time
 
     opts = options or RegionOptions()
@@ -1296,8 +1326,12 @@ def compute_regions(pd, options: RegionOptions | None = None, reference=None, fr
     workers = opts.workers
     if workers is None:
         workers = min(2, os.cpu_count() or 1) if n >= 120 else 1
+    # warm starts only within a chunk of frames, and the same chunks whether a pool runs them or
+    # this thread does: the answer must not depend on the scheduling, nor on what ran before
+    pooled = workers > 1 and n >= 2 * workers
+    chunks = [list(ch) for ch in np.array_split(idx, 4 * workers) if len(ch)] if pooled else [list(idx)]
     results = None
-    if workers > 1 and n >= 2 * workers:
+    if pooled and cancel is None and _may_fork():
         import multiprocessing as mp
 
         try:
@@ -1306,21 +1340,29 @@ def compute_regions(pd, options: RegionOptions | None = None, reference=None, fr
             ctx = None
         if ctx is not None:
             _SHARED["args"] = (pd, reference, opts, bw, n_root)
-            chunks = [list(ch) for ch in np.array_split(idx, 4 * workers) if len(ch)]
             try:
-                with ctx.Pool(workers) as pool:
+                with ctx.Pool(workers, initializer=_worker_signals) as pool:
                     parts = pool.map(_work, chunks)
                 results = [r for part in parts for r in part]
             finally:
                 _SHARED.clear()
     if results is None:
-        _POOL.clear()  # same warm starts, same answer, whatever ran before
-        it = idx
+        bar = None
         if progress:
             from tqdm import tqdm
 
-            it = tqdm(idx, desc="feasible regions", unit="frame", disable=None)
-        results = [_one(pd, reference, int(i), opts, bw, n_root) for i in it]
+            bar = tqdm(total=n, desc="feasible regions", unit="frame", disable=None)
+        results = []
+        for chunk in chunks:
+            _pool().clear()
+            for i in chunk:
+                if cancel is not None and cancel():
+                    raise Cancelled("stopped")
+                results.append(_one(pd, reference, int(i), opts, bw, n_root))
+                if bar is not None:
+                    bar.update(1)
+        if bar is not None:
+            bar.close()
     K = np.asarray(pd.N).shape[2]
     offsets = np.zeros(n + 1, dtype=np.int64)
     offsets[1:] = np.cumsum([len(r.verts) for r in results])
@@ -1348,5 +1390,5 @@ def compute_regions(pd, options: RegionOptions | None = None, reference=None, fr
         body_weight=bw,
     )
     rs.seconds = time.perf_counter() - t0
-    _BOUNDS.clear()
+    getattr(_LOCAL, "bounds", {}).clear()
     return rs
