@@ -1,18 +1,110 @@
-"""Atomic output files: a reader never sees a half-written file, a failure leaves nothing behind."""
+"""Atomic output files: a reader never sees a half-written file, a failure leaves nothing behind.
+
+* :func:`atomic_write` writes a temporary file beside the output and renames it over the output
+  only when the writing succeeded.
+* :func:`all_or_none` makes a command's outputs one transaction: every :func:`atomic_write` inside
+  it only stages its file, and they are renamed into place together at the end (with SIGINT and
+  SIGTERM held off for those few renames), or all removed on any failure.
+* :func:`check_outputs` is run before any work: each output's folder exists, it is not a folder,
+  not an existing device, FIFO or other special file, not one of the files the command reads (by
+  path, symlink or hard link) and not another of its outputs.
+"""
 import contextlib
+import contextvars
 import os
+import signal
 import tempfile
 from pathlib import Path
 
 from .errors import RetimeError
 
 
+def _same_file(a: Path, b: Path) -> bool:
+    if a.resolve() == b.resolve():
+        return True
+    try:
+        return os.path.samefile(a, b)  # hard links, bind mounts
+    except OSError:
+        return False
+
+
 def check_not_input(output, *inputs):
     """Refuse to write over one of the command's input files."""
-    out = Path(output).resolve()
+    out = Path(output)
     for path in inputs:
-        if path is not None and Path(path).resolve() == out:
-            raise RetimeError(f"{output}: refusing to overwrite the input file; choose another output path")
+        if path is not None and _same_file(Path(path), out):
+            raise RetimeError(f"{output}: refusing to overwrite the input file {path}; choose another output path")
+
+
+def check_outputs(outputs, inputs=()):
+    """Check a command's outputs before any work (see the module docstring). ``outputs`` and
+    ``inputs`` may hold None (an option not given)."""
+    seen = []
+    for output in outputs:
+        if output is None:
+            continue
+        path = Path(output)
+        directory = path.parent if str(path.parent) else Path(".")
+        if not directory.is_dir():
+            raise RetimeError(f"{output}: output folder {directory} does not exist; create it first")
+        if path.is_dir():
+            raise RetimeError(f"{output}: is a folder; give a file name for the output")
+        if path.exists() and not path.is_file():
+            raise RetimeError(f"{output}: exists and is not a regular file (a device, FIFO or socket); "
+                              "retime only replaces regular files")
+        if not os.access(directory, os.W_OK):
+            raise RetimeError(f"{output}: cannot write in the folder {directory} (permission denied)")
+        check_not_input(output, *inputs)
+        for other in seen:
+            if _same_file(Path(other), path) or Path(other).resolve() == path.resolve():
+                raise RetimeError(f"{output}: given for two outputs; choose a different file for each")
+        seen.append(output)
+
+
+class _Transaction:
+    def __init__(self):
+        self.staged: list[tuple[str, Path]] = []
+
+    def commit(self):
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+        try:
+            done = []
+            try:
+                for tmp, path in self.staged:
+                    os.replace(tmp, path)
+                    done.append(path)
+            except BaseException:
+                for path in done:  # a rename failed: take back the ones made
+                    with contextlib.suppress(OSError):
+                        os.unlink(path)
+                raise
+            self.staged = []
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+    def abort(self):
+        for tmp, _ in self.staged:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+        self.staged = []
+
+
+_TRANSACTION: contextvars.ContextVar = contextvars.ContextVar("retime_outputs", default=None)
+
+
+@contextlib.contextmanager
+def all_or_none():
+    """Every :func:`atomic_write` inside commits together at the end, or none does."""
+    tx = _Transaction()
+    token = _TRANSACTION.set(tx)
+    try:
+        yield tx
+        tx.commit()
+    except BaseException:
+        tx.abort()
+        raise
+    finally:
+        _TRANSACTION.reset(token)
 
 
 def _umask() -> int:
@@ -39,6 +131,10 @@ def atomic_write(path, mode="w", newline=None):
         with f:
             yield f
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual permissions
+        tx = _TRANSACTION.get()
+        if tx is not None:
+            tx.staged.append((tmp, path))  # renamed with the command's other outputs
+            return
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):

@@ -4,9 +4,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
 
 from ..errors import RetimeError
+from ..io_util import all_or_none
 
 COMMANDS = ["info", "convert", "linear", "edit", "plot", "render", "apply", "demo", "guided", "physics"]
 
@@ -40,7 +42,17 @@ def main(argv=None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
+        if args.command == "edit":  # a server: uvicorn handles its signals, exports commit one by one
+            return int(args.func(args) or 0)
+        previous = signal.signal(signal.SIGTERM, _terminate)
+        try:
+            with all_or_none():  # the command's outputs appear together, or none of them
+                return int(args.func(args) or 0)
+        finally:
+            signal.signal(signal.SIGTERM, previous)
+    except Terminated:
+        print(f"retime {args.command}: terminated; no output written", file=sys.stderr)
+        return 143
     except RetimeError as e:
         print(f"retime {args.command}: error: {e}", file=sys.stderr)
         return 2
@@ -52,8 +64,16 @@ def main(argv=None) -> int:
         print(f"retime {args.command}: error: {where}{e.strerror or e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"retime {args.command}: interrupted", file=sys.stderr)
+        print(f"retime {args.command}: interrupted; no output written", file=sys.stderr)
         return 130
+
+
+class Terminated(BaseException):
+    """SIGTERM: raised in the main thread so that every output in progress is removed."""
+
+
+def _terminate(signum, frame):
+    raise Terminated()
 
 
 if __name__ == "__main__":

@@ -3,7 +3,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import RetimeError
-from ..io_util import check_not_input
+from ..io_util import check_outputs
 from .common import positive_float
 
 EPILOG = """examples:
@@ -39,7 +39,7 @@ def run(args):
     from ..viz.video import VIDEO_EXTS, apply_to_signal, apply_to_video
     from ..warp import TimingCurve
 
-    check_not_input(args.output, args.input, args.warp)
+    check_outputs([args.output], [args.input, args.warp])
     if not Path(args.input).exists():
         raise RetimeError(f"{args.input}: file not found")
     curve = TimingCurve.from_csv(args.warp)

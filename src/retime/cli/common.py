@@ -5,7 +5,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import RetimeError
-from ..io_util import check_not_input
+from ..io_util import check_not_input, check_outputs
 from ..motion import load_motion, save_bvh
 from ..warp import TimingCurve, scale_warp, snap_duration
 
@@ -88,17 +88,31 @@ def keytime(text):
 
 
 def load_input(args):
-    return load_motion(args.motion, fps=args.fps, asf=args.asf, **frame_kwargs(args))
+    motion = load_motion(args.motion, fps=args.fps, asf=args.asf, **frame_kwargs(args))
+    check_found_inputs(args, motion)
+    return motion
+
+
+OUTPUT_OPTIONS = ("output", "warp", "report", "write_body")  # what a motion command may write
+INPUT_OPTIONS = ("motion", "asf", "reference", "body", "contacts")  # what it may read
 
 
 def check_output(args, suffixes=(".bvh",)):
+    """Every output of a motion command, before any work: its suffix, its folder, not an input
+    given on the command line, not another output (see :func:`retime.io_util.check_outputs`)."""
     if Path(args.output).suffix.lower() not in suffixes:
         raise RetimeError(f"{args.output}: output must end in {' or '.join(suffixes)}")
-    check_not_input(args.output, args.motion, getattr(args, "asf", None))
-    if getattr(args, "warp", None):
-        if Path(args.warp).suffix.lower() != ".csv":
-            raise RetimeError(f"{args.warp}: the warp file must end in .csv")
-        check_not_input(args.warp, args.motion, args.output, getattr(args, "asf", None))
+    if getattr(args, "warp", None) and Path(args.warp).suffix.lower() != ".csv":
+        raise RetimeError(f"{args.warp}: the warp file must end in .csv")
+    check_outputs([getattr(args, k, None) for k in OUTPUT_OPTIONS], [getattr(args, k, None) for k in INPUT_OPTIONS])
+
+
+def check_found_inputs(args, *motions):
+    """Outputs against the files found while loading (an AMC's skeleton beside it, a reference's)."""
+    found = [m.skeleton.source for m in motions if m is not None and m.skeleton.source]
+    for k in OUTPUT_OPTIONS:
+        if getattr(args, k, None):
+            check_not_input(getattr(args, k), *found)
 
 
 def target_duration(args, motion):

@@ -6,8 +6,7 @@ import argparse
 from ..errors import RetimeError
 from ..motion import load_motion
 from ..warp import apply_timing
-from .common import frame_kwargs, add_duration_args, add_motion_args, add_output_args, check_output, load_input, positive_float, write_outputs
-from ..io_util import check_not_input
+from .common import check_found_inputs, frame_kwargs, add_duration_args, add_motion_args, add_output_args, check_output, load_input, positive_float, write_outputs
 
 
 def register(sub):
@@ -75,10 +74,8 @@ def run(args):
         raise RetimeError(f"{args.motion}: a single frame has no timing to change")
     reference = None
     if args.reference:
-        check_not_input(args.output, args.reference)
-        if args.warp:
-            check_not_input(args.warp, args.reference)
         reference = load_motion(args.reference, fps=args.reference_fps, **frame_kwargs(args))
+        check_found_inputs(args, reference)
     from ..guided import adaptive_smooth, guided_solve
 
     result = guided_solve(

@@ -4,7 +4,6 @@ from __future__ import annotations
 import argparse
 
 from ..errors import RetimeError
-from ..io_util import check_not_input
 from ..warp import apply_timing
 from .common import add_duration_args, add_motion_args, add_output_args, check_output, load_input, positive_float, \
     target_duration, write_outputs
@@ -82,9 +81,6 @@ def run(args):
     from ..physics.report import flight_speeds, write_report
 
     check_output(args)
-    for extra in (args.report, args.write_body):
-        if extra:
-            check_not_input(extra, args.motion, args.output, getattr(args, "asf", None), args.body, args.contacts)
     m = load_input(args)
     if m.n_frames < 4:
         raise RetimeError(f"{args.motion}: physics needs at least 4 frames, the motion has {m.n_frames}")

@@ -3,7 +3,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import RetimeError
-from ..io_util import check_not_input
+from ..io_util import check_outputs
 
 EPILOG = """examples:
   retime plot linear.csv guided.csv physics.csv -o speeds.png
@@ -36,7 +36,7 @@ def run(args):
     from ..viz import plot
 
     inputs = list(args.warps) + ([args.regions] if args.regions else [])
-    check_not_input(args.output, *inputs)
+    check_outputs([args.output], inputs)
     if Path(args.output).suffix.lower() not in plot.FORMATS:
         raise RetimeError(f"{args.output}: write a plot as .png, .svg or .pdf")
     if args.regions:

@@ -3,7 +3,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import RetimeError
-from ..io_util import check_not_input
+from ..io_util import check_outputs
 from .common import add_frame_args, frame_kwargs, positive_float
 
 EPILOG = """examples:
@@ -62,7 +62,7 @@ def run(args):
         raise RetimeError(f"{args.output}: --at writes a single frame; name a .png file")
     if args.at is None and out_ext not in {".mp4", ".mkv", ".mov", ".gif"}:
         raise RetimeError(f"{args.output}: write a video as .mp4, .mkv, .mov or .gif (or a .png with --at SEC)")
-    check_not_input(args.output, *args.motions, *args.warp, args.report, args.asf)
+    check_outputs([args.output], [*args.motions, *args.warp, args.report, args.asf])
     motions = [load_motion(m, fps=args.input_fps, asf=args.asf, **frame_kwargs(args)) for m in args.motions]
     panels = []  # (default label, motion, curve)
     for path, m in zip(args.motions, motions):

@@ -1,0 +1,116 @@
+"""No input is ever overwritten, and a command writes all its outputs or none (issue 12: 2 and 3)."""
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from retime.cli import main
+from retime.data import bundled_path
+from retime.io_util import all_or_none, atomic_write
+
+CLI = [sys.executable, "-c", "import sys; from retime.cli import main; sys.exit(main())"]
+
+
+@pytest.fixture()
+def amc(tmp_path):
+    """16_06.amc with its 16.asf beside it, found automatically."""
+    for name in ("16_06.amc", "16.asf"):
+        shutil.copy(bundled_path(name), tmp_path / name)
+    return tmp_path / "16_06.amc"
+
+
+def _run(args, capsys):
+    code = main([str(a) for a in args])
+    err = capsys.readouterr().err
+    return code, err
+
+
+def _snapshot(folder):
+    return {p.name: p.read_bytes() for p in Path(folder).iterdir() if p.is_file()}
+
+
+@pytest.mark.parametrize("extra", [["--report", "{asf}"], ["--write-body", "{asf}"]])
+def test_the_skeleton_found_beside_an_amc_is_never_an_output(amc, tmp_path, capsys, extra):
+    before = _snapshot(tmp_path)
+    args = ["physics", amc, "-o", tmp_path / "o.bvh"] + [e.format(asf=tmp_path / "16.asf") for e in extra]
+    code, err = _run(args, capsys)
+    assert code == 2 and "refusing to overwrite the input file" in err and "16.asf" in err
+    assert _snapshot(tmp_path) == before  # nothing changed, nothing added
+
+
+def test_an_input_given_as_output_is_refused(amc, tmp_path, capsys):
+    contacts = tmp_path / "c.csv"
+    contacts.write_text("point,first,last\nboth,0,406\n")
+    before = _snapshot(tmp_path)
+    code, err = _run(["physics", amc, "-o", tmp_path / "o.bvh", "--contacts", contacts, "--warp", contacts], capsys)
+    assert code == 2 and "refusing to overwrite the input file" in err
+    code, err = _run(["physics", amc, "-o", tmp_path / "o.bvh", "--warp", tmp_path / "w.csv",
+                      "--report", tmp_path / "w.csv"], capsys)
+    assert code == 2 and "two outputs" in err
+    os.link(amc, tmp_path / "hard.bvh")  # a hard link to the input is the input
+    code, err = _run(["linear", amc, "-o", tmp_path / "hard.bvh", "--scale", "0.5"], capsys)
+    assert code == 2 and "refusing to overwrite" in err
+    assert _snapshot(tmp_path) == dict(before, **{"hard.bvh": amc.read_bytes()})
+
+
+def test_special_files_are_never_replaced(amc, tmp_path, capsys):
+    fifo = tmp_path / "fifo.csv"
+    os.mkfifo(fifo)
+    code, err = _run(["linear", amc, "-o", tmp_path / "o.bvh", "--scale", "0.5", "--warp", fifo], capsys)
+    assert code == 2 and "not a regular file" in err
+    assert Path(fifo).exists() and not Path(fifo).is_file() and not (tmp_path / "o.bvh").exists()
+
+
+def test_a_missing_output_folder_is_found_before_any_work(amc, tmp_path, capsys):
+    t0 = time.perf_counter()
+    code, err = _run(["physics", amc, "-o", tmp_path / "o.bvh", "--report", tmp_path / "missing" / "r.json"], capsys)
+    assert code == 2 and "does not exist" in err and time.perf_counter() - t0 < 5  # no solve first
+    code, err = _run(["linear", amc, "-o", tmp_path / "x.bvh", "--scale", "0.5", "--warp",
+                      tmp_path / "missing" / "w.csv"], capsys)
+    assert code == 2 and not (tmp_path / "x.bvh").exists()
+
+
+def test_outputs_commit_together_or_not_at_all(tmp_path):
+    a, b = tmp_path / "a.txt", tmp_path / "b.txt"
+    with pytest.raises(KeyboardInterrupt):
+        with all_or_none():
+            with atomic_write(a) as f:
+                f.write("first")
+            raise KeyboardInterrupt  # Ctrl-C between the two files
+    assert list(tmp_path.iterdir()) == []
+    with all_or_none():
+        with atomic_write(a) as f:
+            f.write("first")
+        assert not a.exists()  # staged, not yet visible
+        with atomic_write(b) as f:
+            f.write("second")
+    assert a.read_text() == "first" and b.read_text() == "second"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt"]  # no temporary file left
+
+
+def test_sigterm_leaves_no_output_and_no_temporary_file(amc, tmp_path):
+    from retime.motion import load_motion, save_bvh
+
+    m = load_motion(amc)
+    idx = np.tile(np.arange(m.n_frames), 8)  # a long clip: the solve takes many seconds
+    long = tmp_path / "long.bvh"
+    save_bvh(m.frames(idx), long)
+    out = tmp_path / "out"
+    out.mkdir()
+    proc = subprocess.Popen(CLI + ["physics", str(long), "-o", str(out / "o.bvh"), "--warp", str(out / "w.csv"),
+                                   "--report", str(out / "r.json")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(4.0)  # inside the dynamics or the regions
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    assert "terminated" in err and "Traceback" not in err
+    assert list(out.iterdir()) == []  # no output, no temporary file
