@@ -269,10 +269,11 @@ def test_a_failed_write_leaves_nothing_and_keeps_the_old_file(tmp_path):
             pass
 
 
-@pytest.mark.parametrize("flags", [["--duration", "1e9"], ["--scale", "1e308"], ["--fps", "1e300", "--duration", "1e10"]])
-def test_absurd_output_lengths_are_refused(capsys, clip, flags):
+@pytest.mark.parametrize("flags, message", [(["--duration", "1e9"], "at most"), (["--scale", "1e308"], "at most"),
+                                            (["--fps", "1e300", "--duration", "1e10"], "outside 0.001 to 100,000 Hz")])
+def test_absurd_output_lengths_are_refused(capsys, clip, flags, message):
     out = clip / "o.bvh"
-    fails_cleanly(capsys, ["linear", clip / "16_15.amc", "-o", out, *flags], "at most", out=out)
+    fails_cleanly(capsys, ["linear", clip / "16_15.amc", "-o", out, *flags], message, out=out)
 
 
 SMALL_BVH = ("HIERARCHY\nROOT a\n{\n OFFSET 0 0 0\n CHANNELS 3 Xrotation Yrotation Zrotation\n End Site\n {\n"

@@ -13,6 +13,7 @@ import numpy as np
 
 from .errors import FormatError, RetimeError
 from .io_util import atomic_write
+from .limits import check_memory
 from .motion.model import Motion
 from .motion.quat import slerp
 
@@ -304,6 +305,10 @@ def apply_timing(motion: Motion, curve: TimingCurve, fps: float | None = None) -
     linear for translations). The result keeps the skeleton and (unless given) the frame rate."""
     fps = motion.fps if fps is None else float(fps)
     check_frame_count(curve, fps)
+    # rotations, translations and the slerp's temporaries, then the written text (about 11 bytes a value)
+    n_out = curve.n_frames(fps)
+    per_frame = motion.skeleton.n_joints * (7 * 8 * 4) + 11 * sum(len(c) for c in motion.skeleton.channels)
+    check_memory(n_out * per_frame, f"an output of {n_out:,} frames")
     if curve.source_duration > motion.duration + 1e-6:
         raise RetimeError(f"the timing curve reaches source time {curve.source_duration:.4g}s, "
                           f"past the end of the motion ({motion.duration:.4g}s)")

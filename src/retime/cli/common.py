@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from ..errors import RetimeError
@@ -79,6 +80,26 @@ def positive_float(text):
     return v
 
 
+def positive_int(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
+    return v
+
+
+def nonnegative_float(text):
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (0 <= v < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a finite number of at least 0, got {text}")
+    return v
+
+
 def keytime(text):
     try:
         a, b = text.split("=")
@@ -90,6 +111,8 @@ def keytime(text):
 def load_input(args):
     motion = load_motion(args.motion, fps=args.fps, asf=args.asf, **frame_kwargs(args))
     check_found_inputs(args, motion)
+    for note in motion.skeleton.notes:
+        print(f"warning: {note}", file=sys.stderr)
     return motion
 
 

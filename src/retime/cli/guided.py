@@ -6,7 +6,7 @@ import argparse
 from ..errors import RetimeError
 from ..motion import load_motion
 from ..warp import apply_timing
-from .common import check_found_inputs, frame_kwargs, add_duration_args, add_motion_args, add_output_args, check_output, load_input, positive_float, write_outputs
+from .common import check_found_inputs, frame_kwargs, add_duration_args, add_motion_args, add_output_args, check_output, load_input, nonnegative_float, positive_float, positive_int, write_outputs
 
 
 def register(sub):
@@ -42,11 +42,11 @@ def register(sub):
                    help="rate of the search (default 30 Hz, as in the paper)")
     p.add_argument("--upsample", type=int, metavar="U",
                    help="grid frames per analysis frame (default: automatic; more lets the warp slow down further)")
-    p.add_argument("--smoothing", type=int, default=5, metavar="W",
+    p.add_argument("--smoothing", type=positive_int, default=5, metavar="W",
                    help="moving-average window of the warp in analysis frames (default 5; 1 = none)")
     p.add_argument("--adaptive-smoothing", action="store_true",
                    help="average each output frame over the source time it covers (window = local compression)")
-    p.add_argument("--approx", type=float, metavar="EPS",
+    p.add_argument("--approx", type=nonnegative_float, metavar="EPS",
                    help="approximate nearest neighbours (KD-tree) with relative error EPS, for long references")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=run)

@@ -1,7 +1,9 @@
 """Skeletons and motions: the data model, file formats (BVH, ASF/AMC) and forward kinematics."""
+import contextlib
 from pathlib import Path
 
-from ..errors import FormatError
+from ..errors import FormatError, RetimeError
+from ..limits import check_fps, check_memory
 from .asf import read_amc, read_asf
 from .bvh import read_bvh, write_bvh
 from .frame import detect_frame
@@ -23,6 +25,10 @@ def load_motion(path, fps=None, asf=None, up=None, units=None, angles=None) -> M
     path = Path(path)
     if fps is not None and not (fps > 0):
         raise FormatError(path, f"frame rate must be positive, got {fps}")
+    if fps is not None:
+        _check_rate(path, fps)
+    with contextlib.suppress(OSError):  # the readers hold about 14 times the file in memory at their peak
+        check_memory(14 * path.stat().st_size, f"reading {path}")
     suffix = path.suffix.lower()
     if suffix == ".bvh":
         return with_detected_frame(path, read_bvh(path, fps=fps, angles=angles), up, units, None)
@@ -33,9 +39,17 @@ def load_motion(path, fps=None, asf=None, up=None, units=None, angles=None) -> M
     raise FormatError(path, f"unknown motion format {suffix or '(no extension)'!r}; retime reads .bvh and .amc")
 
 
+def _check_rate(path, fps):
+    try:
+        check_fps(float(fps))
+    except RetimeError as e:
+        raise FormatError(path, f"{e}; check Frame Time, or give --fps") from None
+
+
 def with_detected_frame(path, motion, up=None, units=None, declared=None):
     """``motion`` with its up axis and units detected (:mod:`.frame`) and recorded on its skeleton
     (``up``, ``meters_per_unit``, ``frame``); ``up``/``units`` override; errors name ``path``."""
+    _check_rate(path, motion.fps)
     try:
         guess = detect_frame(motion, up=up, units=units, declared_units=declared)
     except ValueError as e:

@@ -220,12 +220,16 @@ def read_bvh(path, fps=None, angles=None) -> Motion:
     if len(data_lines) < n_frames:
         last = data_lines[-1][0] if data_lines else lines[-1][0]
         raise FormatError(path, f"file ends after {len(data_lines)} of {n_frames} frames (truncated?)", last)
+    extra = len(data_lines) - n_frames
     data_lines = data_lines[:n_frames]
     values = _parse_frames(path, data_lines, n_channels)
     offsets = np.array(h.offsets)
     end_sites = [(int(j), np.asarray(o)) for j, o in h.end_sites]
     skeleton = Skeleton(names=h.names, parents=np.array(h.parents), offsets=offsets, channels=h.channels,
                         end_sites=end_sites, source=str(path))
+    if extra > 0:
+        skeleton.notes.append(f"{path}: the file has {extra} more frame row(s) after the {n_frames} its 'Frames:' "
+                              f"line declares (line {header['frames'][1]}); read {n_frames}. Correct that line to read them all")
     skeleton.meters_per_unit = guess_meters_per_unit(rest_height(skeleton))
     if angles not in (None, "deg", "rad"):
         raise FormatError(path, f"angles must be 'deg' or 'rad', got {angles!r}")
@@ -337,8 +341,8 @@ def bvh_text(motion) -> str:
     for j, off in sk.end_sites:
         sites.setdefault(j, []).append(off)
 
-    def fmt(v):  # offsets keep every digit a file usually has (frame values are printed with 6 decimals)
-        return " ".join(f"{x + 0.0:.10g}" for x in v)
+    def fmt(v):  # offsets keep every digit (shortest round trip: 1.797e308 must not come back as inf)
+        return " ".join(repr(float(x) + 0.0) for x in v)
 
     def write_joint(j, depth):
         ind = "\t" * depth

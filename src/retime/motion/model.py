@@ -40,6 +40,7 @@ class Skeleton:
     source: str = ""
     up: str = "+y"  # the world axis the file calls up ('+y', '-z', ...), detected when loaded
     angles: str = "deg"  # the unit a file's rotation channels were written in ('deg' or 'rad')
+    notes: list[str] = field(default_factory=list)  # what the reader noticed and the user should know
     frame: object = None  # the FrameGuess of retime.motion.frame that set up and meters_per_unit
 
     def __post_init__(self):
