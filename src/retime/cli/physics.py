@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 
 from ..errors import RetimeError
 from ..warp import apply_timing
@@ -27,7 +28,20 @@ def _vector3(text):
         v = []
     if len(v) != 3:
         raise argparse.ArgumentTypeError(f"gravity must be X,Y,Z in m/s^2 (e.g. 0,-9.81,0), got {text!r}")
+    if not all(math.isfinite(x) for x in v) or math.hypot(*v) > MAX_GRAVITY:
+        raise argparse.ArgumentTypeError(f"gravity must be finite and at most {MAX_GRAVITY:g} m/s^2 long, got {text!r}")
     return tuple(v)
+
+
+MAX_GRAVITY = 1000.0  # m/s^2: a hundred g
+MASS_FACTORS = (1e-3, 1e3)
+
+
+def _gravity_scale(text):
+    g = positive_float(text)
+    if g * 9.81 > MAX_GRAVITY:
+        raise argparse.ArgumentTypeError(f"at most {MAX_GRAVITY / 9.81:.0f} (a hundred g), got {text}")
+    return g
 
 
 def _mass(text):
@@ -36,8 +50,9 @@ def _mass(text):
         f = float(value)
     except ValueError:
         f = -1.0
-    if not sep or not name or not (f > 0):
-        raise argparse.ArgumentTypeError(f"mass factor must look like SEGMENT=FACTOR with FACTOR > 0 (e.g. lfemur=10), got {text!r}")
+    if not sep or not name or not (MASS_FACTORS[0] <= f <= MASS_FACTORS[1]):
+        raise argparse.ArgumentTypeError(f"mass factor must look like SEGMENT=FACTOR with FACTOR from {MASS_FACTORS[0]:g} "
+                                         f"to {MASS_FACTORS[1]:g} (e.g. lfemur=10), got {text!r}")
     return name, f
 
 
@@ -54,7 +69,7 @@ def register(sub):
     g = p.add_mutually_exclusive_group()
     g.add_argument("--gravity", type=_vector3, metavar="X,Y,Z", help="gravity vector in m/s^2 in the file's axes (default 9.81 down its up axis, "
                    "detected or given by --up)")
-    g.add_argument("--gravity-scale", type=positive_float, metavar="G", help="gravity times G (0.25: a quarter of the gravity)")
+    g.add_argument("--gravity-scale", type=_gravity_scale, metavar="G", help="gravity times G (0.25: a quarter of the gravity)")
     p.add_argument("--mass", type=_mass, action="append", default=[], metavar="SEGMENT=FACTOR",
                    help="multiply a segment's mass (skeleton joint name, e.g. lfemur=10); repeat for several")
     p.add_argument("--objective", choices=("match", "minimize"), default="match",

@@ -251,8 +251,8 @@ def create_app(clip: Clip, outdir, *, static_dir=STATIC_DIR, allowed_hosts=LOOPB
             return {}
         try:
             return json.loads(raw)
-        except (ValueError, UnicodeDecodeError):
-            raise StarletteHTTPException(400, "the request body is not valid JSON") from None
+        except (ValueError, UnicodeDecodeError, RecursionError):  # RecursionError: JSON nested thousands deep
+            raise StarletteHTTPException(400, "the request body is not valid JSON (or is nested too deep)") from None
 
     async def in_thread(fn, *args):
         return await asyncio.get_running_loop().run_in_executor(executor, fn, *args)
@@ -311,7 +311,7 @@ def create_app(clip: Clip, outdir, *, static_dir=STATIC_DIR, allowed_hosts=LOOPB
             raise RetimeError("send {\"ops\": [ ... edits ... ]}")
 
         def work():
-            session.apply(ops)
+            apply_edits(session, ops)
             return session.solution_json(session.solve_now(), seq=body.get("seq"))
 
         return await in_thread(work)
@@ -347,6 +347,17 @@ def create_app(clip: Clip, outdir, *, static_dir=STATIC_DIR, allowed_hosts=LOOPB
     return Guard(app, allowed_hosts=allowed_hosts, max_body=max_body) if allowed_hosts else app
 
 
+def apply_edits(session, ops):
+    """Apply edits from a page; an edit of the wrong shape (a list where a name belongs, ...) is a
+    RetimeError (400, or an error message on the socket), never a crash of the connection."""
+    try:
+        return session.apply(ops)
+    except RetimeError:
+        raise
+    except (TypeError, ValueError, KeyError, AttributeError, IndexError, RecursionError) as e:
+        raise RetimeError(f"bad edit: a field has the wrong type or shape ({type(e).__name__})") from None
+
+
 class LiveLoop:
     """One websocket: edits in, solutions out. A newer edit cancels the solve of an older one."""
 
@@ -365,7 +376,13 @@ class LiveLoop:
         solver = asyncio.create_task(self.solver())
         try:
             while True:
-                text = await self.ws.receive_text()
+                message = await self.ws.receive()
+                if message["type"] == "websocket.disconnect":
+                    break
+                text = message.get("text")
+                if text is None:  # a binary frame
+                    await self.send({"type": "error", "message": "send edits as JSON text, not binary"})
+                    continue
                 await self.handle(text)
         except WebSocketDisconnect:
             pass
@@ -381,8 +398,8 @@ class LiveLoop:
             return
         try:
             msg = json.loads(text)
-        except ValueError:
-            await self.send({"type": "error", "message": "message is not valid JSON"})
+        except (ValueError, RecursionError):
+            await self.send({"type": "error", "message": "message is not valid JSON (or is nested too deep)"})
             return
         seq = msg.get("seq") if isinstance(msg, dict) else None
         if not isinstance(seq, (int, type(None))) or isinstance(seq, bool):
@@ -390,7 +407,7 @@ class LiveLoop:
         try:
             if not isinstance(msg, dict) or "ops" not in msg:
                 raise RetimeError("send {\"seq\": N, \"ops\": [ ... edits ... ]}")
-            self.session.apply(msg["ops"])
+            apply_edits(self.session, msg["ops"])
         except RetimeError as e:
             await self.send({"type": "error", "seq": seq, "message": str(e)})
             self.seq = seq

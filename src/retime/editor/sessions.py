@@ -7,6 +7,8 @@ snapshot and polls ``version`` to stop when a newer edit has arrived.
 """
 from __future__ import annotations
 
+import contextlib
+import os
 import re
 import secrets
 import threading
@@ -16,12 +18,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import RetimeError
+from ..io_util import all_or_none
 from ..motion import save_bvh
 from ..warp import apply_timing, snap_duration
 from .methods import METHODS, Clip, ControlPoint, Job, Solution, check_params, default_params
 
 MAX_POINTS = 200
 MAX_OPS = 64  # edits in one message
+EDIT_FIELDS = ("op", "index", "t", "s", "hold", "locked", "method", "values", "duration")
 OP_LOG = 4096  # edits remembered for stateful methods to replay (older: they resync from the points)
 S_GAP = 1e-3  # seconds: neighbouring control points' source times differ at least this much
 MIN_SPEED, MAX_SPEED = 1 / 20, 20.0  # the duration may change by this factor at the most
@@ -94,10 +98,18 @@ class Session:
             self.points, self.method, self.params, self.held = points, method, params, held
             self.keytimes = [] if self._merged else self._kt
             self.version += 1
-            self.op_log.extend((self.version, dict(op)) for op in ops)
+            # only the fields an edit has: a page's extra fields (or junk) are not kept for ever
+            self.op_log.extend((self.version, self._logged(op)) for op in ops)
             del self.op_log[:-OP_LOG]
             self.last_used = time.monotonic()
             return self.version
+
+    def _logged(self, op):
+        out = {k: op[k] for k in EDIT_FIELDS if k in op}
+        if isinstance(out.get("values"), dict):  # only the method's own, checked settings
+            known = self.params.get(out.get("method", self.method), {})
+            out["values"] = {k: known[k] for k in out["values"] if k in known}
+        return out
 
     def _apply_one(self, op, points, method, params):
         if not isinstance(op, dict) or not isinstance(op.get("op"), str):
@@ -337,10 +349,18 @@ class Session:
         motion = self.clip.motion
         retimed = apply_timing(motion, sol.curve)
         stem = re.sub(r"[^A-Za-z0-9_-]+", "_", self.clip.name)[:40] or "motion"
-        base = _free_base(self.outdir, f"{stem}-{method}")
-        bvh, csv = self.outdir / f"{base}.bvh", self.outdir / f"{base}.csv"
-        save_bvh(retimed, bvh)
-        sol.curve.to_csv(csv, motion.fps)
+        bvh, csv = _reserve_pair(self.outdir, f"{stem}-{method}")
+        try:
+            with all_or_none():  # both files or neither (a full disk leaves no BVH without its CSV)
+                save_bvh(retimed, bvh)
+                sol.curve.to_csv(csv, motion.fps)
+        except BaseException as e:
+            for path in (bvh, csv):
+                with contextlib.suppress(OSError):
+                    path.unlink()
+            if isinstance(e, OSError):
+                raise RetimeError(f"{self.outdir}: cannot write the export ({e.strerror or e}); nothing was written") from None
+            raise
         files = []
         for path in (bvh, csv):
             self.exports[path.name] = path
@@ -348,11 +368,26 @@ class Session:
         return {"files": files, "frames": retimed.n_frames, "duration": retimed.duration, "folder": str(self.outdir)}
 
 
-def _free_base(outdir, prefix):
+def _reserve_pair(outdir, prefix):
+    """(bvh, csv) paths of a new export, reserved atomically: both names are created empty with
+    O_EXCL, so concurrent exports never share a name (the writes then replace them)."""
     for k in range(1, 10000):
-        base = f"{prefix}-{k:03d}"
-        if not (outdir / f"{base}.bvh").exists() and not (outdir / f"{base}.csv").exists():
-            return base
+        paths = [outdir / f"{prefix}-{k:03d}.bvh", outdir / f"{prefix}-{k:03d}.csv"]
+        made = []
+        try:
+            for path in paths:
+                os.close(os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
+                made.append(path)
+            return paths[0], paths[1]
+        except FileExistsError:
+            for path in made:
+                with contextlib.suppress(OSError):
+                    path.unlink()
+        except OSError as e:
+            for path in made:
+                with contextlib.suppress(OSError):
+                    path.unlink()
+            raise RetimeError(f"{outdir}: cannot write the export ({e.strerror or e})") from None
     raise RetimeError(f"{outdir}: too many exports already; clean up the output folder")
 
 

@@ -87,6 +87,9 @@ def read_asf(path) -> Asf:
                     length_unit = float(tokens[1])
                     if not (np.isfinite(length_unit) and length_unit > 0):
                         raise FormatError(path, f"length unit must be a positive number, got {tokens[1]}", lineno)
+                    if not 1e-9 <= INCH / length_unit <= 1e6:
+                        raise FormatError(path, f"length {tokens[1]} makes one unit {INCH / length_unit:.3g} m; retime "
+                                                "reads units of 1 nm to 1000 km (CMU's files say 0.45)", lineno)
                 elif key == "angle":
                     angle_scale = 1.0 if tokens[1].lower().startswith("rad") else np.pi / 180.0
             elif section == ":root":
@@ -322,7 +325,7 @@ def _parse_amc(path, text, info):
     first_line = text.count("\n", 0, start) + 1
     body = [(i + first_line, ln.strip()) for i, ln in enumerate(body_text.splitlines())
             if ln.strip() and not ln.lstrip().startswith("#")]
-    frame_starts = [k for k, (_, ln) in enumerate(body) if ln.isdigit()]
+    frame_starts = [k for k, (_, ln) in enumerate(body) if ln.isdecimal()]  # "²" is a digit to Python, not a number
     if not frame_starts or frame_starts[0] != 0:
         raise FormatError(path, "expected a frame number to start the motion data", body[0][0] if body else first_line)
     bounds = frame_starts + [len(body)]
@@ -335,11 +338,11 @@ def _parse_amc_fast(body_text, dof_count, expected):
     Splits the whole text into tokens once and reads the values column-wise; returns None when the
     file does not have that regular layout or holds a bad value (the slow path then names the line)."""
     tokens = body_text.split()
-    if not tokens or not tokens[0].isdigit():
+    if not tokens or not tokens[0].isdecimal():
         return None
     layout = []  # (bone name, value count) of the first frame
     k = 1
-    while k < len(tokens) and not (tokens[k].isdigit() and tokens[k] not in dof_count):
+    while k < len(tokens) and not (tokens[k].isdecimal() and tokens[k] not in dof_count):
         name = tokens[k]
         if name not in dof_count:
             return None
@@ -355,7 +358,7 @@ def _parse_amc_fast(body_text, dof_count, expected):
         name_cols.append(col)
         value_cols.extend(range(col + 1, col + 1 + c))
         col += 1 + c
-    if not all(map(str.isdigit, table[:, 0])):
+    if not all(map(str.isdecimal, table[:, 0])):
         return None
     if not np.all(table[:, name_cols] == np.array([n for n, _ in layout], dtype=object)):
         return None

@@ -344,21 +344,26 @@ def bvh_text(motion) -> str:
     def fmt(v):  # offsets keep every digit (shortest round trip: 1.797e308 must not come back as inf)
         return " ".join(repr(float(x) + 0.0) for x in v)
 
-    def write_joint(j, depth):
+    # depth first with an explicit stack: a chain of thousands of joints must not hit Python's recursion limit
+    stack = [("open", 0, 0)]
+    while stack:
+        what, j, depth = stack.pop()
         ind = "\t" * depth
+        if what == "close":
+            for off in sites.get(j, []):
+                out.write(f"{ind}\tEnd Site\n{ind}\t{{\n{ind}\t\tOFFSET {fmt(off)}\n{ind}\t}}\n")
+            out.write(f"{ind}}}\n")
+            continue
         out.write(f"{ind}{'ROOT' if sk.parents[j] < 0 else 'JOINT'} {sk.names[j]}\n{ind}{{\n")
         # A root whose position is animated gets OFFSET 0: tools differ on whether a root OFFSET adds
         # to its position channels (retime, Blender: it does not), and a zero offset reads the same in both.
         offset = np.zeros(3) if j == 0 and set(POSITION_CHANNELS) <= set(channels[j]) else sk.offsets[j]
         out.write(f"{ind}\tOFFSET {fmt(offset)}\n")
         out.write(f"{ind}\tCHANNELS {len(channels[j])} {' '.join(channels[j])}\n")
-        for c in children[j]:
-            write_joint(c, depth + 1)
-        for off in sites.get(j, []):
-            out.write(f"{ind}\tEnd Site\n{ind}\t{{\n{ind}\t\tOFFSET {fmt(off)}\n{ind}\t}}\n")
-        out.write(f"{ind}}}\n")
+        stack.append(("close", j, depth))
+        for c in reversed(children[j]):
+            stack.append(("open", c, depth + 1))
 
-    write_joint(0, 0)
     out.write(f"MOTION\nFrames: {motion.n_frames}\nFrame Time: {1.0 / motion.fps:.10g}\n")
     np.savetxt(out, values, fmt="%.6f", delimiter=" ")
     return out.getvalue()

@@ -181,8 +181,8 @@ def conformed_gravity(motion, gravity=None) -> np.ndarray:
     if gravity is None:
         return np.asarray(STANDARD_GRAVITY, dtype=float)
     g = np.asarray(gravity, dtype=float)
-    if g.shape != (3,) or not np.all(np.isfinite(g)):
-        raise RetimeError(f"gravity must be three finite numbers, got {gravity!r}")
+    if g.shape != (3,) or not np.all(np.isfinite(g)) or np.linalg.norm(g) > 1000.0:
+        raise RetimeError(f"gravity must be three finite numbers, at most 1000 m/s^2 long, got {gravity!r}")
     return R @ g
 
 

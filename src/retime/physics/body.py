@@ -569,9 +569,14 @@ def _key(name: str) -> str:
     return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else '"' + name.replace('"', '\\"') + '"'
 
 
+MAX_BODY_VALUE = 1e4  # kg, m, N m: larger values in a body file are typing errors, not bodies
+
+
 def _number(path, where, value, positive=False, nonneg=False):
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise FormatError(path, f"{where} must be a number, got {value!r}")
+    if abs(value) > MAX_BODY_VALUE:
+        raise FormatError(path, f"{where} is {value:g}; body files hold values up to {MAX_BODY_VALUE:g} (kg, m, N m)")
     if positive and value <= 0:
         raise FormatError(path, f"{where} must be positive, got {value}")
     if nonneg and value < 0:

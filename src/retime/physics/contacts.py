@@ -202,6 +202,11 @@ def read_contacts(path, n_frames: int) -> np.ndarray:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise FormatError(path, "no such contact file") from None
+    except IsADirectoryError:
+        raise FormatError(path, "is a folder, not a contact file") from None
+    except UnicodeDecodeError as e:
+        line = path.read_bytes()[:e.start].count(b"\n") + 1
+        raise FormatError(path, "is not UTF-8 text; a contact file is a CSV of point,first,last", line=line) from None
     out = np.zeros((n_frames, 4), dtype=bool)
     rows = 0
     for lineno, line in enumerate(text.splitlines(), 1):

@@ -105,12 +105,16 @@ def _frame_record(rec: dict, i: int, path: str) -> dict:
             point = (float(point[0]), float(point[1]))
         except (TypeError, ValueError):
             raise FormatError(path, f"frame {i}: the timing (p'', p'^2) must be two numbers") from None
+        if not all(np.isfinite(point)):
+            raise FormatError(path, f"frame {i}: the timing (p'', p'^2) is not finite ({point[0]}, {point[1]})")
     region = rec.get("region", rec.get("polygon", rec.get("hull")))
     if region is not None:
         try:
             region = np.asarray(region, dtype=np.float64).reshape(-1, 2)
         except (TypeError, ValueError):
             raise FormatError(path, f"frame {i}: the region must be a list of [p'', p'^2] points") from None
+        if not np.all(np.isfinite(region)):
+            raise FormatError(path, f"frame {i}: the region has a point that is not finite")
     objective = rec.get("objective")
     if isinstance(objective, dict):
         try:

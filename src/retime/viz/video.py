@@ -58,7 +58,7 @@ def probe_video(path: str | os.PathLike) -> dict:
             stream = container.streams.video[0]
             rate = stream.average_rate or stream.guessed_rate
             times = [f.time for f in container.decode(stream)]
-    except (av.error.InvalidDataError, av.error.FileNotFoundError, av.error.ValueError) as exc:
+    except _av_errors(av) as exc:
         raise FormatError(path, f"cannot read video ({exc})") from None
     if not times:
         raise FormatError(path, "the video has no frames")
@@ -73,13 +73,19 @@ def probe_video(path: str | os.PathLike) -> dict:
     }
 
 
+def _av_errors(av) -> tuple:
+    """PyAV's reading errors, whatever its version names them: every one derives from FFmpegError
+    (and from a builtin such as ValueError or OSError; av.error.ValueError is gone in PyAV 18)."""
+    return tuple(e for e in (getattr(av.error, "FFmpegError", None), ValueError, OSError, EOFError) if e is not None)
+
+
 def _decode(path: str) -> Iterator[tuple[float, np.ndarray]]:
     """(time from the first frame in seconds, RGB uint8 frame) for each frame of the first video stream."""
     import av
 
     try:
         container = av.open(path)
-    except (av.error.InvalidDataError, av.error.FileNotFoundError, av.error.ValueError) as exc:
+    except _av_errors(av) as exc:
         raise FormatError(path, f"cannot read video ({exc})") from None
     with container:
         if not container.streams.video:
@@ -95,7 +101,7 @@ def _decode(path: str) -> Iterator[tuple[float, np.ndarray]]:
                 if t0 is None:
                     t0 = t
                 yield t - t0, frame.to_ndarray(format="rgb24")
-        except av.error.InvalidDataError as exc:
+        except _av_errors(av) as exc:
             raise FormatError(path, f"corrupt video data ({exc})") from None
 
 
@@ -260,8 +266,8 @@ def apply_to_signal(
         header = None
         try:
             values = np.load(input_path, allow_pickle=False)
-        except (ValueError, OSError) as exc:
-            raise FormatError(input_path, f"cannot read NumPy array ({exc})") from None
+        except (ValueError, OSError, EOFError) as exc:  # an empty file is an EOFError
+            raise FormatError(input_path, f"cannot read NumPy array ({exc or 'empty file'})") from None
         if values.ndim < 1 or values.shape[0] < 2:
             raise FormatError(input_path, f"need an array with at least two frames along axis 0, got shape {values.shape}")
         if not np.issubdtype(values.dtype, np.number) or np.issubdtype(values.dtype, np.complexfloating):
