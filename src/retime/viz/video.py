@@ -14,6 +14,7 @@ import csv
 import io
 import math
 import os
+from tokenize import TokenError
 from typing import Iterator
 
 import numpy as np
@@ -266,7 +267,8 @@ def apply_to_signal(
         header = None
         try:
             values = np.load(input_path, allow_pickle=False)
-        except (ValueError, OSError, EOFError) as exc:  # an empty file is an EOFError
+        except (ValueError, OSError, EOFError, SyntaxError, TokenError) as exc:  # a bad header fails in
+            # NumPy's header parser (SyntaxError, TokenError); an empty file is an EOFError
             raise FormatError(input_path, f"cannot read NumPy array ({exc or 'empty file'})") from None
         if values.ndim < 1 or values.shape[0] < 2:
             raise FormatError(input_path, f"need an array with at least two frames along axis 0, got shape {values.shape}")

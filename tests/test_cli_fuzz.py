@@ -1,0 +1,126 @@
+"""Mutation fuzzing of every command over every file kind it reads (issue 12: 7). Each run must end
+with exit 0, or exit 2 and one line on stderr; never a traceback, never an output left behind after
+a failure, never a changed input. Seeded (failures reproduce) and bounded in time."""
+from __future__ import annotations
+
+import io
+import time
+from contextlib import redirect_stderr, redirect_stdout
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from _foundation_ref import mutate
+from retime.cli import main
+from retime.data import bundled_path
+from retime.motion import load_motion, save_bvh
+
+BUDGET_S = 12.0  # seconds per kind of file (at most 400 cases each)
+
+
+def _cut_bvh(frames=12):
+    m = load_motion(bundled_path("16_15.bvh")).frames(slice(0, frames))
+    buf = Path("/dev/shm" if Path("/dev/shm").is_dir() else "/tmp") / f"retime-fuzz-{frames}.bvh"
+    save_bvh(m, buf)
+    text = buf.read_text()
+    buf.unlink()
+    return text
+
+
+@pytest.fixture(scope="module")
+def seeds(tmp_path_factory):
+    root = tmp_path_factory.mktemp("seeds")
+    bvh = root / "a.bvh"
+    bvh.write_text(_cut_bvh())
+    warp = root / "w.csv"
+    report = root / "r.json"
+    assert main(["physics", str(bvh), "-o", str(root / "p.bvh"), "--scale", "0.8", "--warp", str(warp),
+                 "--report", str(report), "--quiet"]) == 0
+    npy = root / "s.npy"
+    np.save(npy, np.random.default_rng(0).normal(size=(12, 3)))
+    sig = root / "s.csv"
+    sig.write_text("time,x\n" + "\n".join(f"{k / 120:.6f},{np.sin(k):.4f}" for k in range(12)) + "\n")
+    contacts = root / "c.csv"
+    contacts.write_text("point,first,last\nleft,0,11\nright_toe,2,9\n")
+    amc_lines = bundled_path("16_15.amc").read_text().splitlines()
+    amc = root / "16_15.amc"
+    amc.write_text("\n".join(amc_lines[: amc_lines.index("9")]) + "\n")
+    (root / "16.asf").write_text(bundled_path("16.asf").read_text())
+    return {"bvh": bvh, "warp": warp, "report": report, "npy": npy, "signal": sig, "contacts": contacts,
+            "amc": amc, "asf": root / "16.asf"}
+
+
+# kind -> (the seed the mutation replaces, command lines: {in} the mutated file, {s:NAME} another seed, {out} a folder)
+CASES = {
+    "bvh": ("bvh", [["info", "{in}"], ["convert", "{in}", "{out}/c.bvh"],
+                    ["linear", "{in}", "-o", "{out}/l.bvh", "--scale", "0.5", "--warp", "{out}/l.csv"],
+                    ["guided", "{in}", "-o", "{out}/g.bvh", "--scale", "0.7", "--fast", "--quiet"]]),
+    "amc": ("amc", [["info", "{in}"], ["linear", "{in}", "-o", "{out}/l.bvh", "--scale", "0.5"]]),
+    "asf": ("asf", [["info", "{s:amc}", "--asf", "{in}"], ["convert", "{s:amc}", "{out}/c.bvh", "--asf", "{in}"]]),
+    "warp": ("warp", [["apply", "{in}", "{s:signal}", "-o", "{out}/o.csv"], ["plot", "{in}", "-o", "{out}/p.png"]]),
+    "report": ("report", [["plot", "--regions", "{in}", "-o", "{out}/r.png"]]),
+    "npy": ("npy", [["apply", "{s:warp}", "{in}", "-o", "{out}/o.npy", "--fit"]]),
+    "contacts": ("contacts", [["physics", "{s:bvh}", "-o", "{out}/p.bvh", "--contacts", "{in}", "--scale", "0.8",
+                               "--quiet"]]),
+}
+
+
+def _mutated_bytes(kind, data: bytes, rng) -> bytes:
+    if kind == "npy":  # binary: flip, cut or insert bytes
+        b = bytearray(data)
+        for _ in range(int(rng.integers(1, 4))):
+            op = int(rng.integers(0, 3))
+            i = int(rng.integers(0, len(b))) if b else 0
+            if op == 0:
+                b = b[:i]
+            elif op == 1 and b:
+                b[i] = int(rng.integers(0, 256))
+            else:
+                b[i:i] = bytes(rng.integers(0, 256, size=int(rng.integers(1, 8))).tolist())
+        return bytes(b)
+    return mutate(data.decode("utf-8", "replace"), rng).encode("utf-8", "replace")
+
+
+def _run(argv):
+    out, err = io.StringIO(), io.StringIO()
+    with redirect_stdout(out), redirect_stderr(err):
+        try:
+            code = main(argv)
+        except SystemExit as e:  # argparse
+            code = e.code
+    return code, err.getvalue()
+
+
+@pytest.mark.parametrize("kind", list(CASES))
+def test_mutated_inputs_fail_cleanly(kind, seeds, tmp_path):
+    seed_name, commands = CASES[kind]
+    original = seeds[seed_name].read_bytes()
+    rng = np.random.default_rng(sum(map(ord, kind)))
+    deadline = time.monotonic() + BUDGET_S
+    runs = 0
+    while time.monotonic() < deadline and runs < 400:
+        work = tmp_path / f"case{runs}"
+        work.mkdir()
+        mutated = work / seeds[seed_name].name
+        data = _mutated_bytes(kind, original, rng)
+        mutated.write_bytes(data)
+        if kind == "amc":
+            (work / "16.asf").write_bytes(seeds["asf"].read_bytes())
+        out = work / "out"
+        out.mkdir()
+        for cmd in commands:
+            argv = [a.replace("{in}", str(mutated)).replace("{out}", str(out)) for a in cmd]
+            argv = [str(seeds[a[3:-1]]) if a.startswith("{s:") else a for a in argv]
+            code, err = _run(argv)
+            what = f"{kind} case {runs}: retime {' '.join(argv)}"
+            assert code in (0, 2), (what, code, err)
+            assert "Traceback" not in err, (what, err)
+            if code == 2:
+                assert len([ln for ln in err.splitlines() if ln.strip()]) == 1, (what, err)
+                assert list(out.iterdir()) == [], (what, sorted(p.name for p in out.iterdir()))
+            assert mutated.read_bytes() == data, what  # the input is never changed
+            for p in list(out.iterdir()):
+                p.unlink()
+        runs += 1
+    assert runs >= 5
