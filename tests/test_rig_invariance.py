@@ -34,6 +34,7 @@ VARIANTS = {
     "dummy root with the travel": lambda m: V.add_dummy_root(m, share=1.0),
     "static dummy root": lambda m: V.add_dummy_root(m, share=0.0),
     "travel split": lambda m: V.add_dummy_root(m, share=0.5),
+    "dummy root with IK targets": lambda m: V.add_dummy_root(m, share=1.0, props=2),
     "6 channels": lambda m: V.six_channels(m),
 }
 

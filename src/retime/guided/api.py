@@ -64,21 +64,23 @@ class GuidedResult:
 
 
 def root_frame_poses(motion: Motion, root_height: float = 0.0) -> np.ndarray:
-    """(F, J, 3) joint positions in the floating base's coordinate frame (:func:`floating_base`;
-    dummy roots above it are zero rows), in metres.
+    """(F, J, 3) joint positions in the floating base's coordinate frame
+    (:func:`retime.motion.rig.floating_base`; dummy roots above it and props beside the body under
+    them are zero rows), in metres.
 
     With ``root_height`` > 0 one more row (F, J+1, 3) holds the base's height above the ground
     along the file's up axis (detected or given, :mod:`retime.motion.frame`; m) times that weight
     in its y slot (x and z zero).
     """
     from retime.motion.frame import up_vector
-    from retime.motion.rig import floating_base
+    from retime.motion.rig import base_and_props
 
     pos, ori = forward_kinematics(motion)
     sk = motion.skeleton
-    base = floating_base(sk)
+    base, props = base_and_props(sk)
     rel = positions_in_root_frame(pos, pos[:, base], ori[:, base]) * float(sk.meters_per_unit)
     rel[:, :base] = 0.0
+    rel[:, props] = 0.0  # IK targets and markers beside the body are not its pose
     if root_height > 0:
         h = np.zeros((rel.shape[0], 1, 3))
         h[:, 0, 1] = (pos[:, base] @ up_vector(sk.up)) * float(sk.meters_per_unit) * root_height

@@ -25,7 +25,7 @@ from scipy.spatial.transform import Rotation
 from .frame import up_rotation
 from .model import Motion, Skeleton
 from .quat import qmul, qrot
-from .rig import floating_base
+from .rig import floating_base, props_below
 
 MAX_STRETCH = 0.15  # of the bone's mean length
 MIN_BONE_M = 0.02  # shorter bones are judged by MAX_STRETCH_M instead
@@ -63,6 +63,7 @@ class Conformed:
     motion: Motion
     rotation: np.ndarray  # (3, 3): file axes -> the conformed (y-up) world
     removed_roots: list[str] = field(default_factory=list)
+    dropped_props: list[str] = field(default_factory=list)  # joints beside the body under a dummy root
     fixed_bones: list[str] = field(default_factory=list)  # 6-channel joints whose translation is constant
     stretch: Stretch | None = None  # the largest stretch above capture noise, if any
 
@@ -71,6 +72,9 @@ class Conformed:
         if self.removed_roots:
             out.append(f"the floating base is {self.motion.skeleton.names[0]!r} (below the dummy root "
                        f"{', '.join(repr(n) for n in self.removed_roots)})")
+        if self.dropped_props:
+            out.append(f"left out of the physics: {', '.join(repr(n) for n in self.dropped_props[:6])} (props or "
+                       "helpers beside the body under the dummy root)")
         if self.stretch is not None:
             out.append(f"bones made rigid at their mean length; the largest stretch: {self.stretch.describe()}")
         return out
@@ -93,6 +97,19 @@ def _drop_root(skeleton: Skeleton, rotations, translations):
 
 def _is_dummy_root(skeleton: Skeleton) -> bool:
     return floating_base(skeleton) > 0
+
+
+def _keep(skeleton: Skeleton, rotations, translations, keep):
+    """Only the joints ``keep`` (sorted, closed under parents): props dropped."""
+    keep = [int(j) for j in keep]
+    new_index = {j: k for k, j in enumerate(keep)}
+    parents = np.array([new_index[int(skeleton.parents[j])] if skeleton.parents[j] >= 0 else -1 for j in keep])
+    sk = dataclasses.replace(
+        skeleton, names=[skeleton.names[j] for j in keep], parents=parents, offsets=skeleton.offsets[keep],
+        channels=[skeleton.channels[j] for j in keep],
+        end_sites=[(new_index[j], o) for j, o in skeleton.end_sites if j in new_index],
+        dof=[skeleton.dof[j] for j in keep], limits=[skeleton.limits[j] for j in keep] if skeleton.limits else None)
+    return sk, rotations[:, keep], translations[:, keep]
 
 
 def _rigid(skeleton: Skeleton, translations, fps):
@@ -128,8 +145,12 @@ def conform(motion: Motion, max_stretch: float = MAX_STRETCH) -> Conformed:
     """The y-up, single-floating-base, rigid-boned motion of ``motion`` (see the module docstring);
     raises :class:`BoneStretch` when a bone stretches by more than ``max_stretch``."""
     sk, rot, tr = motion.skeleton, motion.rotations, motion.translations
-    removed = []
+    removed, props = [], []
     while _is_dummy_root(sk):
+        extra = props_below(sk, 0) or []
+        if extra:  # IK targets or markers beside the body: physics has no use for them
+            props += [sk.names[j] for j in extra]
+            sk, rot, tr = _keep(sk, rot, tr, [j for j in range(sk.n_joints) if j not in set(extra)])
         removed.append(sk.names[0])
         sk, rot, tr = _drop_root(sk, rot, tr)
     sk, tr, fixed, worst = _rigid(sk, tr, motion.fps)
@@ -151,13 +172,18 @@ def conform(motion: Motion, max_stretch: float = MAX_STRETCH) -> Conformed:
             limbs = limbs_by_name(sk)
         except NotBiped:
             limbs = None
-        if limbs is None and frame.limbs is not None:  # structural limbs: shift past the removed roots
-            k = len(removed)
+        if limbs is None and frame.limbs is not None:  # structural limbs: the same joints, renumbered
+            where = {name: k for k, name in enumerate(sk.names)}
+            old = motion.skeleton.names
+
+            def moved(v):
+                return tuple(where[old[j]] for j in v)
+
             limbs = dataclasses.replace(
-                frame.limbs, legs={s: tuple(j - k for j in v) for s, v in frame.limbs.legs.items()},
-                arms={s: tuple(j - k for j in v) for s, v in frame.limbs.arms.items()},
-                head=None if frame.limbs.head is None else frame.limbs.head - k)
+                frame.limbs, legs={s: moved(v) for s, v in frame.limbs.legs.items()},
+                arms={s: moved(v) for s, v in frame.limbs.arms.items() if all(old[j] in where for j in v)},
+                head=where.get(old[frame.limbs.head]) if frame.limbs.head is not None else None)
         sk.frame = dataclasses.replace(frame, up="+y", limbs=limbs)
     out = Motion(sk, rot, tr, motion.fps)
-    return Conformed(out, R, removed_roots=removed, fixed_bones=fixed,
+    return Conformed(out, R, removed_roots=removed, dropped_props=props, fixed_bones=fixed,
                      stretch=worst if worst is not None and worst.share > NOISE_STRETCH else None)

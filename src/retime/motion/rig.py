@@ -109,16 +109,61 @@ class NotBiped(Exception):
     """The skeleton is not a two-legged character (a quadruped, a prop, an arm)."""
 
 
+LIMB_PARTS = ("foot", "toe", "shank", "thigh", "hand", "forearm", "upperarm", "head", "neck")
+MAX_PROP_JOINTS = 3
+
+
+def descendants(parents, j) -> list[int]:
+    """``j`` and every joint below it (parents come before their children)."""
+    out = [j]
+    for k in range(j + 1, len(parents)):
+        if parents[k] in out:
+            out.append(k)
+    return out
+
+
+def props_below(skeleton, j) -> list[int] | None:
+    """When joint ``j`` carries the body through one child and holds only props or helpers beside
+    it (IK targets, a reference marker: subtrees of at most 3 joints, no limb among them and no
+    mirrored pair), the joints of those props; [] when it has a single child; None otherwise."""
+    kids = [int(k) for k in np.flatnonzero(skeleton.parents == j)]
+    if len(kids) <= 1:
+        return [] if kids else None
+    trees = {k: descendants(skeleton.parents, k) for k in kids}
+    body = max(kids, key=lambda k: len(trees[k]))
+    others = [k for k in kids if k != body]
+    if any(len(trees[k]) > MAX_PROP_JOINTS for k in others):
+        return None
+    if any(part_of(skeleton.names[m]) in LIMB_PARTS for k in others for m in trees[k]):
+        return None
+    for a in range(len(others)):
+        for b in range(a + 1, len(others)):
+            ca, cb = trees[others[a]], trees[others[b]]
+            if _mirrored(skeleton, ca, cb):  # two legs of three joints each are not props
+                return None
+    return [m for k in others for m in trees[k]]
+
+
 def floating_base(skeleton) -> int:
     """The joint that carries the floating base: the root, or the joint below a chain of dummy
-    roots (roots with a single child joint and no end site, see :mod:`retime.motion.conform`)."""
-    j = 0
+    roots (roots whose one child carries the body, beside props at most, and that have no end
+    site; see :mod:`retime.motion.conform`)."""
+    return base_and_props(skeleton)[0]
+
+
+def base_and_props(skeleton) -> tuple[int, list[int]]:
+    """(:func:`floating_base`, the prop joints beside the body under the dummy roots above it)."""
+    j, props = 0, []
     while skeleton.n_joints - j > 2:
-        kids = np.flatnonzero(skeleton.parents == j)
-        if len(kids) != 1 or any(e == j for e, _ in skeleton.end_sites):
+        here = props_below(skeleton, j)
+        if here is None or any(e == j for e, _ in skeleton.end_sites):
             break
-        j = int(kids[0])
-    return j
+        kids = [int(k) for k in np.flatnonzero(skeleton.parents == j) if int(k) not in here]
+        if len(kids) != 1 or len(descendants(skeleton.parents, kids[0])) < 3:
+            break
+        props += here
+        j = kids[0]
+    return j, props
 
 
 def _depth(parents, j):

@@ -113,10 +113,10 @@ def _neutral_words(name):
     return [w for w in (rest,) if w]
 
 
-def add_dummy_root(motion: Motion, name: str = "Reference", share: float = 1.0) -> Motion:
+def add_dummy_root(motion: Motion, name: str = "Reference", share: float = 1.0, props: int = 0) -> Motion:
     """A root above the current one. It holds ``share`` of the horizontal travel (1: all of it,
     0: none) and a constant quarter turn about the vertical; the old root keeps the rest, so the
-    world motion is unchanged."""
+    world motion is unchanged. ``props``: that many IK-target joints beside the body under it."""
     sk = motion.skeleton
     up = np.zeros(3)
     up[1] = 1.0
@@ -137,6 +137,25 @@ def add_dummy_root(motion: Motion, name: str = "Reference", share: float = 1.0) 
         sk, names=[name] + list(sk.names), parents=parents, offsets=np.vstack([np.zeros(3), sk.offsets]),
         channels=[six] + [six] + [list(c) for c in sk.channels[1:]], end_sites=[(j + 1, o) for j, o in sk.end_sites],
         dof=None, limits=None)
+    out = Motion(new, rot, tr, motion.fps)
+    for k in range(props):
+        out = _add_prop(out, f"IK_Target{k}")
+    return out
+
+
+def _add_prop(motion: Motion, name: str) -> Motion:
+    """A 6-channel leaf under the root, wandering about (an IK target exported with the rig)."""
+    sk = motion.skeleton
+    F = motion.n_frames
+    scale = float(np.abs(sk.offsets).max()) or 1.0
+    t = np.arange(F) / motion.fps
+    path = np.stack([np.sin(t), 0.5 + 0.1 * np.cos(2 * t), np.cos(0.7 * t)], axis=1) * scale
+    six = list(POSITION_CHANNELS) + ["Zrotation", "Xrotation", "Yrotation"]
+    rot = np.concatenate([motion.rotations, np.broadcast_to([0.0, 0.0, 0.0, 1.0], (F, 1, 4))], axis=1)
+    tr = np.concatenate([motion.translations, path[:, None]], axis=1)
+    new = dataclasses.replace(sk, names=list(sk.names) + [name], parents=np.append(sk.parents, 0),
+                              offsets=np.vstack([sk.offsets, path[0]]), channels=[list(c) for c in sk.channels] + [six],
+                              dof=None, limits=None)
     return Motion(new, rot, tr, motion.fps)
 
 

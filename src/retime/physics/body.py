@@ -48,7 +48,7 @@ import numpy as np
 
 from ..errors import FormatError, RetimeError
 from ..io_util import atomic_write
-from ..motion.rig import Limbs, NotBiped, limbs_by_name, part_of
+from ..motion.rig import Limbs, NotBiped, descendants, limbs_by_name, part_of
 from .tree import FIXED, FREE, SPHERICAL, TreeModel
 
 BODY_MASS = 70.0
@@ -222,14 +222,6 @@ BIPED_SENTENCE = ("physics-based retiming needs a two-legged character (two legs
                   "and this skeleton is not one")
 
 
-def _descendants(parents, j):
-    out = [j]
-    for k in range(j + 1, len(parents)):
-        if parents[k] in out:
-            out.append(k)
-    return out
-
-
 def skeleton_limbs(skeleton) -> Limbs:
     """The skeleton's limbs: those found when it was loaded (:mod:`retime.motion.frame`), else by name."""
     frame = getattr(skeleton, "frame", None)
@@ -286,7 +278,7 @@ def classify_segments(skeleton, feet=None) -> dict[int, str]:
         limbs = None
     seg: dict[int, str] = {0: "pelvis"}
     for side, (foot, _) in feet.items():
-        for k in _descendants(parents, foot):
+        for k in descendants(parents, foot):
             seg[k] = "foot"
         leg = limbs.legs.get(side) if limbs is not None else None
         if leg is None or leg[2] != foot:
@@ -308,7 +300,7 @@ def classify_segments(skeleton, feet=None) -> dict[int, str]:
     for side, (upper, fore, hand) in (limbs.arms if limbs is not None else {}).items():
         if hand in seg:
             continue
-        for k in _descendants(parents, hand):
+        for k in descendants(parents, hand):
             seg.setdefault(k, "hand")
         for j in _path_up(parents, int(parents[hand]), fore):
             seg.setdefault(j, "forearm")
@@ -319,7 +311,7 @@ def classify_segments(skeleton, feet=None) -> dict[int, str]:
     if limbs is not None and limbs.head is not None and limbs.head not in seg:
         heads.append(limbs.head)
     for j in heads:
-        for k in _descendants(parents, j):
+        for k in descendants(parents, j):
             seg.setdefault(k, "head")
     for j in range(skeleton.n_joints):
         seg.setdefault(j, "trunk")
@@ -379,7 +371,7 @@ def default_body(skeleton, mass=None, feet_names=None, motion=None, frames=None)
             if side is None:
                 side = "left" if rest[j, 0] - rest[0, 0] > 0 else "right"
             for sd, (foot, _) in feet_idx.items():
-                if j in _descendants(skeleton.parents, foot):
+                if j in descendants(skeleton.parents, foot):
                     side = sd
         groups.setdefault((s, side), []).append(j)
     share = {g: DE_LEVA[g[0]][0] for g in groups}
