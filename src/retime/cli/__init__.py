@@ -10,7 +10,7 @@ import sys
 from ..errors import RetimeError
 from ..io_util import all_or_none
 
-COMMANDS = ["info", "convert", "linear", "edit", "plot", "render", "apply", "demo", "guided", "physics"]
+COMMANDS = ["info", "convert", "linear", "edit", "plot", "render", "apply", "demo", "guided", "physics", "check"]
 
 
 class _Parser(argparse.ArgumentParser):

@@ -1,0 +1,154 @@
+"""How physical a clip's own timing is, frame by frame (``retime check``; McCann et al. 2006, sec. 5:
+"a force visualization framework that emphasizes violated constraints in a source motion").
+
+Per source frame, from the path dynamics and feasible regions of the clip at its own timing:
+
+* ``residual``: the wrench (body weights, weighted L1 over the root rows) that no friction-cone
+  contact force can supply (``RegionSet.source_residual``);
+* ``torque_excess``: the most any joint's torque of the original timing exceeds its limit (N m;
+  zero with the default limits, which come from the clip itself, unless a body file sets them);
+* ``com_accel``: the centre of mass's acceleration (m/s^2) and, in flight, ``flight_g``: its
+  vertical component against g (1 in a real flight);
+* ``foot_slide``: horizontal speed (m/s) of the sole points in contact.
+
+The verdict is :func:`retime.physics.plausibility.check_source`'s: physical unless more than 10% of
+the frames need over a quarter of body weight of residual, or the floor moves under the feet, or the
+root never moves; with the likely causes.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .plausibility import OFF_RESIDUAL, SourceCheck, check_source
+
+G = 9.81
+FLIGHT_G_TOL = 0.35  # real jumps, through the dynamics' 0.05 s low-pass: 0.85-1.05 g
+
+
+@dataclass
+class ClipCheck:
+    fps: float
+    times: np.ndarray  # (F,) s
+    residual: np.ndarray  # (F,) body weights
+    torque_excess: np.ndarray  # (F,) N m
+    com_accel: np.ndarray  # (F, 3) m/s^2, y up
+    flight: np.ndarray  # (F,) bool: no sole point in contact
+    foot_slide: np.ndarray  # (F,) m/s (0 where no point is in contact)
+    verdict: SourceCheck
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def physical(self) -> bool:
+        return self.verdict.physical
+
+    @property
+    def flight_g(self) -> float | None:
+        """Median vertical centre-of-mass acceleration in flight, in units of -g (None: no flight)."""
+        if not self.flight.any():
+            return None
+        return float(np.median(-self.com_accel[self.flight, 1]) / G)
+
+    def worst_frames(self, k: int = 5, apart: float = 0.1) -> list[int]:
+        """Up to ``k`` frames of the largest residual over a quarter body weight, ``apart`` seconds
+        from each other (distinct moments, not one landing's neighbouring frames)."""
+        out = []
+        gap = max(1, int(round(apart * self.fps)))
+        for i in np.argsort(-self.residual, kind="stable"):
+            if self.residual[i] <= OFF_RESIDUAL or len(out) == k:
+                break
+            if all(abs(int(i) - j) > gap for j in out):
+                out.append(int(i))
+        return out
+
+    def summary(self) -> dict:
+        slide = self.foot_slide[~self.flight]
+        return {
+            "physical": self.physical,
+            "frames": int(len(self.times)),
+            "off_share": round(self.verdict.off_share, 4),
+            "median_residual": round(self.verdict.median_residual, 4),
+            "max_residual": round(float(self.residual.max()), 4) if len(self.residual) else 0.0,
+            "max_torque_excess": round(float(self.torque_excess.max()), 3) if len(self.times) else 0.0,
+            "flight_share": round(float(self.flight.mean()), 4),
+            "flight_g": None if self.flight_g is None else round(self.flight_g, 3),
+            "median_foot_slide": round(float(np.median(slide)), 4) if slide.size else 0.0,
+            "worst_frames": self.worst_frames(),
+            "causes": list(self.verdict.causes),
+            "notes": list(self.notes),
+        }
+
+    def report(self) -> dict:
+        frames = [{"frame": i, "time": round(float(t), 6), "residual": round(float(r), 5),
+                   "torque_excess": round(float(e), 4), "flight": bool(f), "foot_slide": round(float(s), 4),
+                   "com_accel": [round(float(x), 4) for x in a]}
+                  for i, (t, r, e, f, s, a) in enumerate(zip(self.times, self.residual, self.torque_excess, self.flight,
+                                                           self.foot_slide, self.com_accel))]
+        return {"summary": self.summary(), "frames": frames}
+
+    def verdict_line(self) -> str:
+        s = self.summary()
+        numbers = (f"{s['off_share']:.0%} of frames over {OFF_RESIDUAL:.0%} body weight of residual "
+                   f"(median {s['median_residual']:.2f}, max {s['max_residual']:.2f})")
+        if s["flight_g"] is not None:
+            numbers += f"; in flight the centre of mass falls at {s['flight_g']:.2f} g"
+        if self.physical:
+            return f"physical as captured: {numbers}"
+        return f"NOT physical as captured: {numbers}. Likely: " + ("; ".join(self.verdict.causes) or
+                                                                   "hand contacts, props, noise or keyframed motion")
+
+
+def _com_accel(terms) -> np.ndarray:
+    """(F, 3) centre-of-mass acceleration at the frames, from the bodies' world frames."""
+    spf = int(terms.samples_per_frame)
+    R, o = np.asarray(terms.R)[::spf], np.asarray(terms.o)[::spf]
+    mass = np.asarray(terms.body.mass, dtype=float)
+    com = np.einsum("fjab,jb->fja", R, np.asarray(terms.body.com, dtype=float)) + o
+    c = np.einsum("fja,j->fa", com, mass) / max(mass.sum(), 1e-12)
+    if len(c) < 3:
+        return np.zeros_like(c)
+    dt = 1.0 / float(terms.fps)
+    return np.gradient(np.gradient(c, dt, axis=0), dt, axis=0)
+
+
+def _foot_slide(terms) -> np.ndarray:
+    spf = int(terms.samples_per_frame)
+    corners = np.asarray(terms.corners)[::spf]
+    contact = np.asarray(terms.contact, dtype=bool)[::spf]
+    if len(corners) < 3:
+        return np.zeros(len(corners))
+    mid = 0.5 * (corners[:, 0::2] + corners[:, 1::2])  # (F, 4, 3)
+    speed = np.linalg.norm(np.gradient(mid[..., [0, 2]], axis=0), axis=-1) * float(terms.fps)
+    return np.where(contact, speed, 0.0).max(axis=1)
+
+
+def _torque_excess(terms) -> np.ndarray:
+    spf = int(terms.samples_per_frame)
+    if terms.tau_ref is None or terms.tau_limit is None:
+        return np.zeros(len(terms.times[::spf]))
+    tau = np.abs(np.asarray(terms.tau_ref))[::spf]
+    return np.maximum(tau - np.asarray(terms.tau_limit)[None], 0.0).max(axis=1)
+
+
+def check_clip(motion, body=None, contacts=None) -> ClipCheck:
+    """Check ``motion``'s own timing (see the module docstring); ``body`` and ``contacts`` as for
+    :func:`retime.physics.api.physics_warp`."""
+    from .api import prepare
+
+    terms, pd, regions, _ = prepare(motion, body=body, contacts=contacts)
+    spf = int(terms.samples_per_frame)
+    residual = np.asarray(regions.source_residual, dtype=float)[::spf]
+    contact = np.asarray(terms.contact, dtype=bool)[::spf]
+    out = ClipCheck(fps=float(motion.fps), times=np.asarray(terms.times)[::spf], residual=residual,
+                    torque_excess=_torque_excess(terms), com_accel=_com_accel(terms), flight=~contact.any(axis=1),
+                    foot_slide=_foot_slide(terms), verdict=check_source(motion, terms, regions),
+                    notes=list(getattr(terms, "conform_notes", [])))
+    g = out.flight_g
+    up_wrong = any("up axis" in c for c in out.verdict.causes)
+    if (not out.physical and not up_wrong and g is not None and out.flight.sum() >= 0.1 * motion.fps
+            and abs(g - 1.0) > FLIGHT_G_TOL):
+        out.verdict.causes.insert(0, f"in flight the centre of mass falls at {g:.2f} g, not 1 g: the clip plays "
+                                     f"{'too fast' if g > 1 else 'too slow'} (a wrong Frame Time or --fps?) or its "
+                                     "units are wrong (give --units)")
+    return out

@@ -1,0 +1,64 @@
+"""``retime check`` against known answers: the bundled jumps are physical as captured; the same jump
+with the wrong up axis, scaled by 2.54 or played at double speed is not (exit 1); bad input is 2."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from retime.cli import main
+from retime.data import bundled_path
+from retime.motion import load_motion, save_bvh
+from retime.motion import variants as V
+from retime.warp import apply_timing, scale_warp
+
+
+def _check(capsys, *args):
+    code = main(["check", *map(str, args)])
+    out = capsys.readouterr()
+    return code, out.out + out.err
+
+
+@pytest.mark.parametrize("clip", ["16_03.amc", "16_06.amc", "16_15.amc"])
+def test_bundled_captures_are_physical(capsys, clip):
+    code, out = _check(capsys, bundled_path(clip))
+    assert code == 0 and "physical as captured" in out and "NOT" not in out
+
+
+@pytest.fixture(scope="module")
+def jump_bvh(tmp_path_factory):
+    path = tmp_path_factory.mktemp("check") / "jump.bvh"
+    save_bvh(load_motion(bundled_path("16_06.amc")), path)
+    return path
+
+
+def test_the_wrong_up_axis_is_not_physical(capsys, jump_bvh):
+    code, out = _check(capsys, jump_bvh, "--up", "x", "--units", "m")
+    assert code == 1 and "NOT physical" in out and "up axis is wrong" in out
+
+
+def test_scaled_by_2_54_is_not_physical(capsys, jump_bvh, tmp_path):
+    big = tmp_path / "big.bvh"
+    save_bvh(V.rescale(load_motion(jump_bvh), 2.54), big)  # metres read as if 2.54 times the size
+    code, out = _check(capsys, big, "--units", "m")
+    assert code == 1 and "NOT physical" in out
+    assert _check(capsys, big)[0] == 0  # detected as inches, it is physical again
+
+
+def test_double_speed_is_not_physical(capsys, jump_bvh, tmp_path):
+    m = load_motion(jump_bvh)
+    fast = tmp_path / "fast.bvh"
+    save_bvh(apply_timing(m, scale_warp(m.duration, 0.5, m.fps)), fast)
+    code, out = _check(capsys, fast, "--report", tmp_path / "r.json", "--plot", tmp_path / "p.png")
+    assert code == 1 and "NOT physical" in out and "worst frames" in out
+    report = json.loads((tmp_path / "r.json").read_text(), parse_constant=lambda c: pytest.fail(c))
+    s = report["summary"]
+    assert not s["physical"] and s["flight_g"] > 1.4 and len(report["frames"]) == load_motion(fast).n_frames
+    assert (tmp_path / "p.png").stat().st_size > 10_000
+
+
+def test_bad_input_is_exit_2(capsys, tmp_path):
+    bad = tmp_path / "bad.bvh"
+    bad.write_text("HIERARCHY\nROOT a\n{\n")
+    code, out = _check(capsys, bad)
+    assert code == 2 and "bad.bvh" in out and "Traceback" not in out
