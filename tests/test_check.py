@@ -62,3 +62,9 @@ def test_bad_input_is_exit_2(capsys, tmp_path):
     bad.write_text("HIERARCHY\nROOT a\n{\n")
     code, out = _check(capsys, bad)
     assert code == 2 and "bad.bvh" in out and "Traceback" not in out
+
+
+def test_the_documented_imports_work():
+    from retime.physics import check_clip, physics_warp  # the README's names
+
+    assert callable(physics_warp) and callable(check_clip)
