@@ -5,7 +5,8 @@ give it the same timing curve (the tests check this on real files):
 
 * :func:`turn_up` - the world turned so that the body's up is another axis (Z-up, -Y-up, X-up);
 * :func:`rescale` - lengths in another unit (mm, inches, m, ...);
-* :func:`rename` - joint names in another convention (Mixamo, Unreal, Rigify, 3ds Max Biped);
+* :func:`rename` - joint names in another convention (Mixamo, Unreal, Rigify, 3ds Max Biped, Kinect,
+  Second Life, Xsens);
 * :func:`add_dummy_root` - a reference joint above the hips, holding all, none or part of the travel;
 * :func:`six_channels` - position channels on every joint, holding the bone offset.
 """
@@ -61,6 +62,19 @@ _CONVENTIONS = {
                "parts": {"thigh": "thigh", "shank": "shin", "foot": "foot", "toe": "toe", "upperarm": "upper_arm",
                          "forearm": "forearm", "hand": "hand", "clavicle": "shoulder", "head": "head", "neck": "neck"},
                "other": "DEF-{name}"},
+    "kinect": {"side": {"left": "Left", "right": "Right"}, "fmt": "{part}{side}",
+               "parts": {"thigh": "Hip", "shank": "Knee", "foot": "Ankle", "toe": "Foot", "upperarm": "Shoulder",
+                         "forearm": "Elbow", "hand": "Wrist", "clavicle": "Collar", "head": "Head", "neck": "Neck"},
+               "other": "{name}"},
+    "secondlife": {"side": {"left": "Left", "right": "Right"}, "fmt": "m{part}{side}",
+                   "parts": {"thigh": "Hip", "shank": "Knee", "foot": "Ankle", "toe": "Foot", "upperarm": "Shoulder",
+                             "forearm": "Elbow", "hand": "Wrist", "clavicle": "Collar", "head": "Head",
+                             "neck": "Neck"},
+                   "other": "m{name}"},
+    "xsens": {"side": {"left": "Left", "right": "Right"}, "fmt": "{side}{part}",
+              "parts": {"thigh": "UpperLeg", "shank": "LowerLeg", "foot": "Foot", "toe": "Toe", "upperarm": "UpperArm",
+                        "forearm": "ForeArm", "hand": "Hand", "clavicle": "Shoulder", "head": "Head", "neck": "Neck"},
+              "other": "{name}"},
     "biped": {"side": {"left": "L", "right": "R"}, "fmt": "Bip01 {side} {part}",
               "parts": {"thigh": "Thigh", "shank": "Calf", "foot": "Foot", "toe": "Toe0", "upperarm": "UpperArm",
                         "forearm": "Forearm", "hand": "Hand", "clavicle": "Clavicle", "head": "Head", "neck": "Neck"},
