@@ -77,12 +77,14 @@ def run(args):
         reference = load_motion(args.reference, fps=args.reference_fps, **frame_kwargs(args))
         check_found_inputs(args, reference)
     from ..guided import adaptive_smooth, guided_solve
+    from ..jit import compile_watch, stderr_if
 
-    result = guided_solve(
-        motion, reference, duration=args.duration, scale=args.scale, free=bool(getattr(args, "free", False)),
-        keytimes=args.keytime, max_skip=args.max_skip, neighbors=args.neighbors, fast=args.fast,
-        analysis_fps=args.analysis_fps, weights=args.weights, upsample=args.upsample, smoothing=args.smoothing,
-        knn="approx" if args.approx is not None else "exact", eps=args.approx or 0.0, quiet=args.quiet)
+    with compile_watch(stderr_if(not args.quiet)):
+        result = guided_solve(
+            motion, reference, duration=args.duration, scale=args.scale, free=bool(getattr(args, "free", False)),
+            keytimes=args.keytime, max_skip=args.max_skip, neighbors=args.neighbors, fast=args.fast,
+            analysis_fps=args.analysis_fps, weights=args.weights, upsample=args.upsample, smoothing=args.smoothing,
+            knn="approx" if args.approx is not None else "exact", eps=args.approx or 0.0, quiet=args.quiet)
     curve = result.curve
     retimed = adaptive_smooth(motion, curve) if args.adaptive_smoothing else apply_timing(motion, curve)
     write_outputs(args, motion, curve, retimed)

@@ -210,6 +210,23 @@ def physics_warp(motion, duration=None, scale=None, gravity=None, mass_factors=N
         if not duration > 0:
             raise RetimeError(f"duration must be positive, got {duration}")
         duration = snap_duration(duration, fps)
+    from ..jit import compile_watch, stderr_if
+
+    with compile_watch(stderr_if(progress)) as jit:
+        result = _physics_warp(motion, duration, gravity, mass_factors, objective, keytimes, body, contacts, friction,
+                               torque_scale, alpha, beta, method, knot_spacing, samples_per_frame, region_options,
+                               terms, max_iter, progress, gamma, metric, excess, penalty, smoothing, delta, start)
+    # the compiler's time is not the method's: reported apart (phases include it on a first run)
+    result.timings["compile"] = round(jit.seconds, 4)
+    result.report["summary"]["timings"]["compile"] = round(jit.seconds, 4)
+    return result
+
+
+def _physics_warp(motion, duration, gravity, mass_factors, objective, keytimes, body, contacts, friction, torque_scale,
+                  alpha, beta, method, knot_spacing, samples_per_frame, region_options, terms, max_iter, progress,
+                  gamma, metric, excess, penalty, smoothing, delta, start):
+    fps = float(motion.fps)
+    S = motion.duration
     timings = {}
     file_gravity = -9.81 * up_vector(motion.skeleton.up) if gravity is None else np.asarray(gravity, dtype=float)
     gravity = conformed_gravity(motion, gravity)
