@@ -10,7 +10,7 @@ import sys
 from ..errors import RetimeError
 from ..io_util import all_or_none
 
-COMMANDS = ["info", "convert", "linear", "edit", "plot", "render", "apply", "demo", "guided", "physics", "check"]
+COMMANDS = ["info", "convert", "linear", "edit", "plot", "render", "apply", "demo", "guided", "physics", "check", "batch"]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -42,7 +42,7 @@ def main(argv=None) -> int:
         parser.print_help()
         return 2
     try:
-        if args.command == "edit":  # a server: uvicorn handles its signals, exports commit one by one
+        if args.command in ("edit", "batch"):  # a server, a batch: their outputs commit one by one
             return int(args.func(args) or 0)
         previous = signal.signal(signal.SIGTERM, _terminate)
         try:

@@ -1,0 +1,212 @@
+"""The clips of a batch: files, folders walked for .bvh/.amc, and jobs files (.csv or .toml) with
+per-clip overrides (duration, scale, keytimes, reference)."""
+from __future__ import annotations
+
+import csv
+import math
+import tomllib
+from dataclasses import dataclass, field, replace
+from pathlib import Path, PurePosixPath
+
+from ..errors import RetimeError
+
+MOTION_SUFFIXES = (".bvh", ".amc")
+JOBS_SUFFIXES = (".csv", ".toml")
+JOB_FIELDS = ("motion", "duration", "scale", "keytimes", "reference")
+
+
+@dataclass(frozen=True)
+class Clip:
+    """One clip to retime: its input, where its outputs go (OUTDIR/<name>.bvh, .csv, .json) and
+    its timing options (a jobs file's row overrides the command line's)."""
+
+    motion: Path
+    name: PurePosixPath  # output path below OUTDIR without suffix, e.g. walks/16_15
+    duration: float | None = None
+    scale: float | None = None
+    keytimes: tuple[tuple[float, float], ...] = ()
+    reference: Path | None = None
+    origin: str = ""  # where the clip was named (for error messages): a folder, a jobs file line
+
+    def outputs(self, outdir: Path, method: str) -> dict[str, Path]:
+        base = outdir / Path(self.name)
+        paths = {"bvh": base.with_name(base.name + ".bvh"), "warp": base.with_name(base.name + ".csv")}
+        if method == "physics":
+            paths["report"] = base.with_name(base.name + ".json")
+        return paths
+
+
+@dataclass
+class Defaults:
+    """The command line's timing options, the default of every clip."""
+
+    duration: float | None = None
+    scale: float | None = None
+    keytimes: tuple[tuple[float, float], ...] = field(default_factory=tuple)
+    reference: Path | None = None
+
+
+def find_clips(inputs, defaults: Defaults, outdir: Path | None = None) -> list[Clip]:
+    """Every clip named by ``inputs``, in order, each with a distinct output name. A folder's walk
+    leaves out ``outdir`` (an output folder inside an input folder must not feed the next run)."""
+    clips: list[Clip] = []
+    for text in inputs:
+        path = Path(text)
+        if path.is_dir():
+            clips.extend(_folder_clips(path, defaults, outdir))
+        elif not path.exists():
+            raise RetimeError(f"{text}: no such file or folder")
+        elif path.suffix.lower() in MOTION_SUFFIXES:
+            clips.append(_clip(path, PurePosixPath(path.stem), defaults, origin=str(path)))
+        elif path.suffix.lower() == ".csv":
+            clips.extend(read_jobs_csv(path, defaults))
+        elif path.suffix.lower() == ".toml":
+            clips.extend(read_jobs_toml(path, defaults))
+        else:
+            raise RetimeError(f"{text}: not a motion (.bvh, .amc), a folder or a jobs file (.csv, .toml)")
+    if not clips:
+        raise RetimeError("no clips found: give .bvh or .amc files, folders holding them, or a jobs file")
+    seen: dict[str, Clip] = {}
+    for clip in clips:
+        key = str(clip.name).lower()  # case-insensitive file systems would merge these too
+        if key in seen:
+            raise RetimeError(f"{seen[key].motion} and {clip.motion} would both write {clip.name}.bvh; "
+                              "rename one or give them from different folders")
+        seen[key] = clip
+    return clips
+
+
+def _folder_clips(folder: Path, defaults: Defaults, outdir: Path | None) -> list[Clip]:
+    root = folder.resolve()
+    skip = outdir.resolve() if outdir is not None else None
+    if skip == root:
+        raise RetimeError(f"{folder}: is also the output folder; the outputs would land on the inputs "
+                          "(choose another -o)")
+    if skip is not None and not skip.is_relative_to(root):
+        skip = None  # OUTDIR outside this folder: nothing of it is in the walk
+    found = sorted(p for p in folder.rglob("*") if p.suffix.lower() in MOTION_SUFFIXES and p.is_file()
+                   and not (skip is not None and p.resolve().is_relative_to(skip)))
+    return [_clip(p, PurePosixPath(p.relative_to(folder).with_suffix("").as_posix()), defaults, origin=str(folder))
+            for p in found]
+
+
+def _clip(motion: Path, name: PurePosixPath, defaults: Defaults, origin: str, **overrides) -> Clip:
+    fields = {"duration": defaults.duration, "scale": defaults.scale, "keytimes": tuple(defaults.keytimes),
+              "reference": defaults.reference}
+    if overrides.get("duration") is not None or overrides.get("scale") is not None:
+        fields["duration"] = fields["scale"] = None  # a row's duration replaces the command's scale, and back
+    fields.update({k: v for k, v in overrides.items() if v is not None})
+    return Clip(motion=motion, name=name, origin=origin, **fields)
+
+
+def _job_name(motion: Path, jobs_file: Path) -> PurePosixPath:
+    """Mirror the jobs file's folder; a clip outside it goes to OUTDIR's top."""
+    try:
+        return PurePosixPath(motion.resolve().relative_to(jobs_file.parent.resolve()).with_suffix("").as_posix())
+    except ValueError:
+        return PurePosixPath(motion.stem)
+
+
+def _job_clip(row: dict, where: str, jobs_file: Path, defaults: Defaults) -> Clip:
+    unknown = sorted(set(row) - set(JOB_FIELDS))
+    if unknown:
+        raise RetimeError(f"{where}: unknown field {unknown[0]!r}; a clip may give {', '.join(JOB_FIELDS)}")
+    motion_text = _text(row.get("motion"), "motion", where)
+    if not motion_text:
+        raise RetimeError(f"{where}: no motion given")
+    motion = jobs_file.parent / motion_text  # relative to the jobs file, as a user reads it
+    duration = _positive(row.get("duration"), "duration", where)
+    scale = _positive(row.get("scale"), "scale", where)
+    if duration is not None and scale is not None:
+        raise RetimeError(f"{where}: give duration or scale, not both")
+    keytimes = parse_keytimes(row.get("keytimes"), where)
+    reference_text = _text(row.get("reference"), "reference", where)
+    reference = jobs_file.parent / reference_text if reference_text else None
+    return _clip(motion, _job_name(motion, jobs_file), defaults, origin=where, duration=duration, scale=scale,
+                 keytimes=keytimes or None, reference=reference)
+
+
+def read_jobs_csv(path: Path, defaults: Defaults) -> list[Clip]:
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as e:
+        raise RetimeError(f"{path}: cannot read the jobs file: {e}") from None
+    rows = list(csv.reader(text.splitlines()))
+    if not rows or [h.strip().lower() for h in rows[0]][:1] != ["motion"]:
+        raise RetimeError(f"{path}: a jobs file starts with a header like 'motion,duration,scale,keytimes,reference'")
+    header = [h.strip().lower() for h in rows[0]]
+    clips = []
+    for lineno, cells in enumerate(rows[1:], start=2):
+        if not any(c.strip() for c in cells):
+            continue
+        if len(cells) > len(header):
+            raise RetimeError(f"{path} line {lineno}: {len(cells)} cells for {len(header)} columns")
+        row = {h: c.strip() for h, c in zip(header, cells) if c.strip()}
+        clips.append(_job_clip(row, f"{path} line {lineno}", path, defaults))
+    return clips
+
+
+def read_jobs_toml(path: Path, defaults: Defaults) -> list[Clip]:
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as e:
+        raise RetimeError(f"{path}: cannot read the jobs file: {e}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise RetimeError(f"{path}: not valid TOML: {e}") from None
+    tables = data.get("clip")
+    if not isinstance(tables, list) or set(data) - {"clip"}:
+        raise RetimeError(f"{path}: a jobs file holds [[clip]] tables (motion = \"walk.bvh\", duration = 2, ...)")
+    clips = []
+    for i, table in enumerate(tables, start=1):
+        if not isinstance(table, dict):
+            raise RetimeError(f"{path} clip {i}: not a table")
+        clips.append(_job_clip(table, f"{path} clip {i}", path, defaults))
+    return clips
+
+
+def _text(value, name, where) -> str | None:
+    if value is None:
+        return None
+    if not isinstance(value, str):
+        raise RetimeError(f"{where}: {name} must be a text (a path), got {value!r}")
+    return value.strip() or None
+
+
+def _positive(value, name, where) -> float | None:
+    if value is None or value == "":
+        return None
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise RetimeError(f"{where}: {name} {value!r} is not a number") from None
+    if isinstance(value, bool) or not (v > 0 and math.isfinite(v)):
+        raise RetimeError(f"{where}: {name} must be a positive number, got {value!r}")
+    return v
+
+
+def parse_keytimes(value, where) -> tuple[tuple[float, float], ...]:
+    """'1.2=0.8;2=1.5' (or a TOML list of 'SRC=DST' texts) -> ((1.2, 0.8), (2.0, 1.5))."""
+    if value is None or value == "":
+        return ()
+    items = value if isinstance(value, list) else str(value).split(";")
+    pairs = []
+    for item in items:
+        if not isinstance(item, str):
+            raise RetimeError(f"{where}: keytimes must look like '1.2=0.8;2=1.5', got {value!r}")
+        if not item.strip():
+            continue
+        src, sep, dst = item.partition("=")
+        try:
+            pair = (float(src), float(dst))
+        except ValueError:
+            pair = None
+        if not sep or pair is None or not all(math.isfinite(x) for x in pair):
+            raise RetimeError(f"{where}: keytime must look like SRC=DST in seconds (e.g. 1.2=0.8), got {item.strip()!r}")
+        pairs.append(pair)
+    return tuple(pairs)
+
+
+def with_absolute_paths(clip: Clip) -> Clip:
+    """Workers may run in another folder: send them absolute paths."""
+    return replace(clip, motion=clip.motion.absolute(),
+                   reference=clip.reference.absolute() if clip.reference else None)

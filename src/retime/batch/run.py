@@ -1,0 +1,218 @@
+"""The Dask driver: one task per clip, each running the single-clip command in-process on a worker
+(so a batch's outputs are byte for byte the command's), gathered as they complete. A worker that
+dies costs only its task, which the scheduler runs again elsewhere (retries)."""
+from __future__ import annotations
+
+import contextlib
+import io
+import logging
+import os
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+
+from ..errors import RetimeError
+from .jobs import Clip, with_absolute_paths
+from .manifest import Manifest, clip_hash
+from .summary import clip_row, read_warp, write_index_html, write_summary_csv
+
+MANIFEST_SAVE_INTERVAL = 1.0  # seconds: often enough for Ctrl-C to keep what finished, rarely enough for 10^4 clips
+
+
+def clip_argv(clip: Clip, method: str, outputs: dict[str, Path], gravity_scale: float | None = None) -> list[str]:
+    """The single-clip command line that makes this clip's outputs."""
+    argv = [method, str(clip.motion), "-o", str(outputs["bvh"]), "--warp", str(outputs["warp"])]
+    if clip.duration is not None:
+        argv += ["--duration", repr(clip.duration)]
+    elif clip.scale is not None:
+        argv += ["--scale", repr(clip.scale)]
+    for src, dst in clip.keytimes:
+        argv += ["--keytime", f"{src!r}={dst!r}"]
+    if clip.reference is not None:
+        argv += ["--reference", str(clip.reference)]
+    if method == "physics":
+        argv += ["--report", str(outputs["report"])]
+        if gravity_scale is not None:
+            argv += ["--gravity-scale", repr(gravity_scale)]
+    if method in ("guided", "physics"):  # linear has no progress output to silence
+        argv.append("--quiet")
+    return argv
+
+
+# ---------------------------------------------------------------------------------------- on a worker
+def allow_cli_off_main_thread() -> None:
+    """retime's main() sets a SIGTERM handler, which Python allows only in the main thread, and a
+    Dask task runs in a worker thread. There, leave the process's handler as it is: the worker
+    owns its signals, and the clip's transaction still commits or aborts as a whole."""
+    if getattr(signal.signal, "retime_batch_guard", False):
+        return
+    original = signal.signal
+
+    def signal_from_main_thread_only(signum, handler):
+        if threading.current_thread() is threading.main_thread():
+            return original(signum, handler)
+        return signal.getsignal(signum)
+
+    signal_from_main_thread_only.retime_batch_guard = True
+    signal.signal = signal_from_main_thread_only
+
+
+def prepare_worker() -> None:
+    """Once per worker before the tasks: the signal guard, and the physics import (which loads or
+    compiles its numba functions) paid up front rather than inside the first clip's seconds."""
+    allow_cli_off_main_thread()
+    __import__("retime.physics.api")
+
+
+def _error_line(stderr: str, returncode) -> str:
+    lines = [line.strip() for line in stderr.splitlines() if line.strip()]
+    errors = [line for line in lines if ": error:" in line]
+    if errors:
+        return errors[-1]
+    return lines[-1] if lines else f"exit code {returncode}"
+
+
+def run_clip(argv: list[str]) -> dict:
+    """One clip, on a worker: ``retime.cli.main(argv)`` with its output captured. Never raises for
+    the clip's own failures; those come back as {'status': 'failed', 'error': one line}."""
+    allow_cli_off_main_thread()  # a worker that joined after prepare_worker ran
+    from ..cli import main
+
+    start = time.perf_counter()
+    out, err = io.StringIO(), io.StringIO()
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                code = main(argv)
+            except SystemExit as e:  # argparse rejecting an option
+                code = e.code
+    except Exception as e:  # a bug in retime: recorded, and the batch goes on
+        return {"status": "failed", "error": f"{type(e).__name__}: {e}".splitlines()[0],
+                "seconds": time.perf_counter() - start}
+    seconds = time.perf_counter() - start
+    if code == 0:
+        return {"status": "done", "error": "", "seconds": seconds}
+    return {"status": "failed", "error": _error_line(err.getvalue(), code), "seconds": seconds}
+
+
+# ------------------------------------------------------------------------------------------ driver
+def _connect(scheduler: str | None, workers: int | None):
+    """A client on the given scheduler, or on an embedded local cluster (one process per worker)."""
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise RetimeError("needs Dask distributed: pip install 'retime[batch]'") from None
+    if scheduler:
+        try:
+            return Client(scheduler, timeout="20s"), None
+        except (OSError, TimeoutError, ValueError) as e:
+            raise RetimeError(f"cannot reach the Dask scheduler at {scheduler}: {e}".splitlines()[0]) from None
+    cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                           dashboard_address=":0", silence_logs=logging.ERROR)
+    try:
+        return Client(cluster), cluster
+    except BaseException:
+        cluster.close()
+        raise
+
+
+def _close(client, cluster) -> None:
+    for thing in (client, cluster):
+        if thing is not None:
+            with contextlib.suppress(Exception):
+                thing.close()
+
+
+def run_batch(clips: list[Clip], outdir: Path, method: str, *, gravity_scale: float | None = None,
+              scheduler: str | None = None, workers: int | None = None, force: bool = False,
+              quiet: bool = False) -> int:
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    manifest = Manifest(outdir)
+    options = {"gravity_scale": gravity_scale}
+    shown = [str(c.motion) for c in clips]  # as the user named them
+    clips = [with_absolute_paths(c) for c in clips]
+    outputs = [c.outputs(outdir.absolute(), method) for c in clips]
+    digests = [clip_hash(c, method, options) for c in clips]
+    results: dict[int, dict] = {}
+    for i, clip in enumerate(clips):
+        if not force and manifest.is_current(clip, digests[i], outputs[i]):
+            results[i] = {"status": "skipped", "error": "", "seconds": None}
+    todo = [i for i in range(len(clips)) if i not in results]
+    for i in todo:
+        outputs[i]["bvh"].parent.mkdir(parents=True, exist_ok=True)
+
+    interrupted = False
+    try:
+        if todo:
+            _compute(clips, outputs, digests, todo, results, manifest, method, gravity_scale,
+                     scheduler, workers, quiet)
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        for i in range(len(clips)):
+            if i not in results:
+                results[i] = {"status": "failed", "error": "interrupted before it finished", "seconds": None}
+        manifest.save()
+        rows = [clip_row(shown[i], **results[i], outputs=outputs[i]) for i in range(len(clips))]
+        curves = [read_warp(o["warp"]) if r["status"] != "failed" else None for o, r in zip(outputs, rows)]
+        write_summary_csv(rows, outdir / "summary.csv")
+        write_index_html(rows, curves, outdir / "index.html", title=f"retime batch: {method}")
+    if interrupted:
+        print("retime batch: interrupted; finished clips kept (see summary.csv)", file=sys.stderr)
+        return 130
+    failed = sum(r["status"] == "failed" for r in rows)
+    if not quiet:
+        counts = {s: sum(r["status"] == s for r in rows) for s in ("done", "skipped")}
+        print(f"wrote {outdir / 'summary.csv'} and index.html: {counts['done']} done, {counts['skipped']} skipped, "
+              f"{failed} failed")
+    if failed:
+        print(f"{failed} of {len(rows)} clips failed (see {outdir / 'summary.csv'})", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _compute(clips, outputs, digests, todo, results, manifest, method, gravity_scale, scheduler, workers, quiet):
+    from distributed import as_completed
+    from tqdm import tqdm
+
+    client, cluster = _connect(scheduler, workers)
+    futures = []
+    try:
+        if not quiet:
+            print(f"dashboard: {client.dashboard_link}", flush=True)
+        client.run(prepare_worker)
+        index_of = {}
+        for i in todo:
+            future = client.submit(run_clip, clip_argv(clips[i], method, outputs[i], gravity_scale),
+                                   pure=False, retries=2)
+            index_of[future.key] = i
+            futures.append(future)
+        counts = {"done": 0, "failed": 0}
+        last_save = -MANIFEST_SAVE_INTERVAL  # the first finished clip is recorded at once
+        with tqdm(total=len(todo), unit="clip", file=sys.stderr, disable=quiet) as bar:
+            for future in as_completed(futures):
+                i = index_of[future.key]
+                try:
+                    result = future.result()
+                except Exception as e:  # the task itself failed: a worker died more often than retries
+                    result = {"status": "failed", "error": f"{type(e).__name__}: {e}".splitlines()[0], "seconds": None}
+                results[i] = result
+                if result["status"] == "done":
+                    manifest.record(clips[i], digests[i], result["seconds"])
+                else:
+                    manifest.forget(clips[i])
+                counts[result["status"]] += 1
+                bar.set_postfix(counts, refresh=False)
+                bar.update(1)
+                if time.monotonic() - last_save >= MANIFEST_SAVE_INTERVAL:
+                    manifest.save()
+                    last_save = time.monotonic()
+    except KeyboardInterrupt:
+        with contextlib.suppress(Exception):
+            client.cancel([f for f in futures if not f.done()])
+        raise
+    finally:
+        _close(client, cluster)
