@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from retime.batch.jobs import Defaults, find_clips
+from retime.errors import RetimeError
 from retime.cli import main
 
 RETIME = "import sys; from retime.cli import main; sys.exit(main(sys.argv[1:]))"  # the CLI in a subprocess
@@ -56,7 +57,7 @@ def good_folder(tmp_path, short_bvh) -> Path:
 
 
 # ------------------------------------------------------------------------- finding clips (no Dask)
-def test_folders_mirror_and_jobs_files_override(tmp_path, good_folder):
+def test_folders_mirror_and_jobs_files_override(tmp_path, good_folder, short_bvh):
     (good_folder / "cmu" / "notes.txt").write_text("not a motion")
     jobs = tmp_path / "jobs.toml"
     jobs.write_text('[[clip]]\nmotion = "in/short.bvh"\nduration = 0.3\nkeytimes = "0.2=0.1;0.4=0.25"\n'
@@ -71,6 +72,10 @@ def test_folders_mirror_and_jobs_files_override(tmp_path, good_folder):
     first, second = find_clips([str(jobs)], Defaults(scale=0.5))
     assert (first.duration, first.scale, first.keytimes) == (0.3, None, ((0.2, 0.1), (0.4, 0.25)))
     assert str(first.name) == "in/short" and second.scale == 0.5
+    shutil.copy(short_bvh, good_folder / "cmu" / "16_33.bvh")  # X.bvh beside X.amc: both kept, named apart
+    assert [str(c.name) for c in find_clips([str(good_folder / "cmu")], Defaults())] == ["16_33.amc", "16_33.bvh"]
+    with pytest.raises(RetimeError, match="would both write short.bvh"):
+        find_clips([str(short_bvh), str(good_folder / "short.bvh")], Defaults())
     table = tmp_path / "jobs.csv"
     table.write_text("motion,scale,keytimes\nin/short.bvh,0.7,\nin/cmu/16_33.amc,,1=0.9\n")
     a, b = find_clips([str(table)], Defaults(duration=1.0))

@@ -66,14 +66,32 @@ def find_clips(inputs, defaults: Defaults, outdir: Path | None = None) -> list[C
             raise RetimeError(f"{text}: not a motion (.bvh, .amc), a folder or a jobs file (.csv, .toml)")
     if not clips:
         raise RetimeError("no clips found: give .bvh or .amc files, folders holding them, or a jobs file")
-    seen: dict[str, Clip] = {}
+    return _distinct_names(clips)
+
+
+def _distinct_names(clips: list[Clip]) -> list[Clip]:
+    """X.amc beside X.bvh (a common layout: the capture and its export) write X.amc.bvh and
+    X.bvh.bvh; any other two clips with one output name are refused."""
+    def key(name):
+        return str(name).lower()  # case-insensitive file systems would merge these too
+
+    groups: dict[str, list[Clip]] = {}
     for clip in clips:
-        key = str(clip.name).lower()  # case-insensitive file systems would merge these too
-        if key in seen:
-            raise RetimeError(f"{seen[key].motion} and {clip.motion} would both write {clip.name}.bvh; "
+        groups.setdefault(key(clip.name), []).append(clip)
+    renamed = {}
+    for group in groups.values():
+        suffixes = {c.motion.suffix.lower() for c in group}
+        if len(group) > 1 and len(suffixes) == len(group):
+            for c in group:
+                renamed[id(c)] = replace(c, name=c.name.with_name(c.name.name + c.motion.suffix.lower()))
+    result = [renamed.get(id(c), c) for c in clips]
+    seen: dict[str, Clip] = {}
+    for clip in result:
+        if key(clip.name) in seen:
+            raise RetimeError(f"{seen[key(clip.name)].motion} and {clip.motion} would both write {clip.name}.bvh; "
                               "rename one or give them from different folders")
-        seen[key] = clip
-    return clips
+        seen[key(clip.name)] = clip
+    return result
 
 
 def _folder_clips(folder: Path, defaults: Defaults, outdir: Path | None) -> list[Clip]:

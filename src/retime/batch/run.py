@@ -129,7 +129,6 @@ def run_batch(clips: list[Clip], outdir: Path, method: str, *, gravity_scale: fl
               scheduler: str | None = None, workers: int | None = None, force: bool = False,
               quiet: bool = False) -> int:
     outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
     manifest = Manifest(outdir)
     options = {"gravity_scale": gravity_scale}
     shown = [str(c.motion) for c in clips]  # as the user named them
@@ -141,26 +140,39 @@ def run_batch(clips: list[Clip], outdir: Path, method: str, *, gravity_scale: fl
         if not force and manifest.is_current(clip, digests[i], outputs[i]):
             results[i] = {"status": "skipped", "error": "", "seconds": None}
     todo = [i for i in range(len(clips)) if i not in results]
-    for i in todo:
-        outputs[i]["bvh"].parent.mkdir(parents=True, exist_ok=True)
 
-    interrupted = False
+    outdir.mkdir(parents=True, exist_ok=True)  # a bad OUTDIR fails here, before a cluster starts
+    client = cluster = None
     try:
-        if todo:
-            _compute(clips, outputs, digests, todo, results, manifest, method, gravity_scale,
-                     scheduler, workers, quiet)
+        if todo:  # before any output file: an unreachable scheduler leaves none behind
+            client, cluster = _connect(scheduler, workers)
     except KeyboardInterrupt:
-        interrupted = True
+        print("retime batch: interrupted while starting; no output written", file=sys.stderr)
+        return 130
+    unfinished, stopped = "interrupted before it finished", None
+    try:
+        for i in todo:
+            outputs[i]["bvh"].parent.mkdir(parents=True, exist_ok=True)
+        if todo:
+            _compute(client, clips, outputs, digests, todo, results, manifest, method, gravity_scale, quiet)
+    except KeyboardInterrupt:
+        stopped = KeyboardInterrupt
+    except Exception as e:  # e.g. the scheduler gone: say so, and still keep what finished
+        stopped = RetimeError(f"the batch stopped: {type(e).__name__}: {e}".splitlines()[0])
+        unfinished = f"not run: {stopped}"
     finally:
-        for i in range(len(clips)):
-            if i not in results:
-                results[i] = {"status": "failed", "error": "interrupted before it finished", "seconds": None}
-        manifest.save()
-        rows = [clip_row(shown[i], **results[i], outputs=outputs[i]) for i in range(len(clips))]
-        curves = [read_warp(o["warp"]) if r["status"] != "failed" else None for o, r in zip(outputs, rows)]
-        write_summary_csv(rows, outdir / "summary.csv")
-        write_index_html(rows, curves, outdir / "index.html", title=f"retime batch: {method}")
-    if interrupted:
+        _close(client, cluster)
+    for i in range(len(clips)):
+        if i not in results:
+            results[i] = {"status": "failed", "error": unfinished, "seconds": None}
+    manifest.save()
+    rows = [clip_row(shown[i], **results[i], outputs=outputs[i]) for i in range(len(clips))]
+    curves = [read_warp(o["warp"]) if r["status"] != "failed" else None for o, r in zip(outputs, rows)]
+    write_summary_csv(rows, outdir / "summary.csv")
+    write_index_html(rows, curves, outdir / "index.html", title=f"retime batch: {method}")
+    if isinstance(stopped, RetimeError):
+        raise stopped
+    if stopped is KeyboardInterrupt:
         print("retime batch: interrupted; finished clips kept (see summary.csv)", file=sys.stderr)
         return 130
     failed = sum(r["status"] == "failed" for r in rows)
@@ -174,11 +186,10 @@ def run_batch(clips: list[Clip], outdir: Path, method: str, *, gravity_scale: fl
     return 0
 
 
-def _compute(clips, outputs, digests, todo, results, manifest, method, gravity_scale, scheduler, workers, quiet):
+def _compute(client, clips, outputs, digests, todo, results, manifest, method, gravity_scale, quiet):
     from distributed import as_completed
     from tqdm import tqdm
 
-    client, cluster = _connect(scheduler, workers)
     futures = []
     try:
         if not quiet:
@@ -214,5 +225,3 @@ def _compute(clips, outputs, digests, todo, results, manifest, method, gravity_s
         with contextlib.suppress(Exception):
             client.cancel([f for f in futures if not f.done()])
         raise
-    finally:
-        _close(client, cluster)
