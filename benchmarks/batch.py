@@ -1,0 +1,87 @@
+"""retime batch throughput on Dask distributed: clips per second over every clip in
+../shared/data (guided and physics, --scale 0.7), on a local cluster of 1 and of 2 workers, and
+the per-task overhead (an empty task's round trip through the scheduler).
+
+    python3 benchmarks/batch.py            # the shared data set (skipped when absent)
+    python3 benchmarks/batch.py DIR ...    # any folders or files
+
+Each throughput is the wall time from the first submission to the last result, on a warmed
+cluster (started, the physics imported on every worker), so cluster start-up is not counted.
+Failed clips count as processed: a batch pays for them too.
+"""
+from __future__ import annotations
+
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from retime.batch.jobs import Defaults, find_clips, with_absolute_paths
+from retime.batch.run import clip_argv, prepare_worker, run_clip
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+ROUND_TRIPS = 200
+
+
+def _nothing():
+    return None
+
+
+def throughput(client, clips, method: str, outdir: Path) -> tuple[float, list[str]]:
+    from distributed import as_completed
+
+    argvs = []
+    for clip in clips:
+        outputs = clip.outputs(outdir, method)
+        outputs["bvh"].parent.mkdir(parents=True, exist_ok=True)
+        argvs.append(clip_argv(clip, method, outputs))
+    start = time.perf_counter()
+    futures = [client.submit(run_clip, argv, pure=False, retries=2) for argv in argvs]
+    results = [f.result() for f in as_completed(futures)]
+    rate = len(clips) / (time.perf_counter() - start)
+    return rate, [r["error"] for r in results if r["status"] != "done"]
+
+
+def round_trip_ms(client) -> float:
+    """Median of sequential submit-and-gather of an empty task: the floor of a clip's cost."""
+    client.submit(_nothing, pure=False).result()
+    times = []
+    for _ in range(ROUND_TRIPS):
+        t = time.perf_counter()
+        client.submit(_nothing, pure=False).result()
+        times.append(time.perf_counter() - t)
+    return statistics.median(times) * 1e3
+
+
+def main(argv) -> int:
+    inputs = argv or ([str(DATA)] if DATA.is_dir() else [])
+    if not inputs:
+        print(f"skipped: no data at {DATA} (give folders or files)")
+        return 0
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        print("skipped: Dask distributed is not installed (pip install -e '.[batch]')")
+        return 0
+    clips = [with_absolute_paths(c) for c in find_clips(inputs, Defaults(scale=0.7))]
+    print(f"{len(clips)} clips from {', '.join(inputs)}; --scale 0.7")
+    print(f"{'workers':>7}  {'method':<8}  {'clips/s':>8}  {'failed':>6}  {'empty task':>10}")
+    errors = {}
+    for workers in (1, 2):
+        with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+                          silence_logs=40) as cluster, Client(cluster) as client:
+            client.run(prepare_worker)
+            overhead = round_trip_ms(client)
+            for method in ("guided", "physics"):
+                with tempfile.TemporaryDirectory() as tmp:
+                    rate, failed = throughput(client, clips, method, Path(tmp))
+                errors.update(dict.fromkeys(failed))
+                print(f"{workers:>7}  {method:<8}  {rate:>8.2f}  {len(failed):>6}  {overhead:>8.2f} ms", flush=True)
+    for error in errors:
+        print(f"failed: {error}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
