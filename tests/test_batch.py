@@ -296,3 +296,26 @@ def test_ctrl_c_keeps_finished_clips_and_exits_130(tmp_path, short_bvh):
     # the next run skips what finished and computes the rest
     assert main(argv[3:-1] + ["--quiet"]) == 0
     assert {name for name, r in rows(out).items() if r["status"] == "skipped"} == done
+
+
+def test_check_batch_ranks_the_library_from_least_to_most_physical(tmp_path):
+    pytest.importorskip("distributed")
+    from retime.motion import load_motion, save_bvh
+    from retime.warp import apply_timing, scale_warp
+
+    folder = tmp_path / "in"
+    folder.mkdir()
+    jump = load_motion(DATA / "16_06.amc")
+    save_bvh(jump, folder / "jump.bvh")
+    save_bvh(apply_timing(jump, scale_warp(jump.duration, 0.5, jump.fps)), folder / "fast.bvh")  # twice as fast
+    (folder / "broken.bvh").write_text("HIERARCHY\n")
+    out = tmp_path / "out"
+    code = main(["batch", str(folder), "-o", str(out), "--method", "check", "--workers", "1", "--quiet"])
+    assert code == 1  # the broken file; a clip that is not physical is a verdict, not a failure
+    with open(out / "summary.csv", newline="", encoding="utf-8") as f:
+        table = list(csv.DictReader(f))
+    assert [Path(r["input"]).name for r in table] == ["fast.bvh", "jump.bvh", "broken.bvh"]  # least physical first
+    assert [r["source_physical"] for r in table[:2]] == ["false", "true"]
+    assert float(table[0]["off_share"]) > float(table[1]["off_share"])
+    assert (out / "fast.json").is_file() and (out / "fast.png").is_file() and not (out / "fast.bvh").exists()
+    assert exit_code(["batch", str(folder), "-o", str(out), "--method", "check", "--scale", "0.5"]) == 2

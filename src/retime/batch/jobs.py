@@ -30,6 +30,8 @@ class Clip:
 
     def outputs(self, outdir: Path, method: str) -> dict[str, Path]:
         base = outdir / Path(self.name)
+        if method == "check":  # a verdict, not a retiming: the report and its plot
+            return {"report": base.with_name(base.name + ".json"), "plot": base.with_name(base.name + ".png")}
         paths = {"bvh": base.with_name(base.name + ".bvh"), "warp": base.with_name(base.name + ".csv")}
         if method == "physics":
             paths["report"] = base.with_name(base.name + ".json")

@@ -23,6 +23,8 @@ MANIFEST_SAVE_INTERVAL = 1.0  # seconds: often enough for Ctrl-C to keep what fi
 
 def clip_argv(clip: Clip, method: str, outputs: dict[str, Path], gravity_scale: float | None = None) -> list[str]:
     """The single-clip command line that makes this clip's outputs."""
+    if method == "check":
+        return ["check", str(clip.motion), "--report", str(outputs["report"]), "--plot", str(outputs["plot"])]
     argv = [method, str(clip.motion), "-o", str(outputs["bvh"]), "--warp", str(outputs["warp"])]
     if clip.duration is not None:
         argv += ["--duration", repr(clip.duration)]
@@ -42,27 +44,9 @@ def clip_argv(clip: Clip, method: str, outputs: dict[str, Path], gravity_scale: 
 
 
 # ---------------------------------------------------------------------------------------- on a worker
-def allow_cli_off_main_thread() -> None:
-    """retime's main() sets a SIGTERM handler, which Python allows only in the main thread, and a
-    Dask task runs in a worker thread. There, leave the process's handler as it is: the worker
-    owns its signals, and the clip's transaction still commits or aborts as a whole."""
-    if getattr(signal.signal, "retime_batch_guard", False):
-        return
-    original = signal.signal
-
-    def signal_from_main_thread_only(signum, handler):
-        if threading.current_thread() is threading.main_thread():
-            return original(signum, handler)
-        return signal.getsignal(signum)
-
-    signal_from_main_thread_only.retime_batch_guard = True
-    signal.signal = signal_from_main_thread_only
-
-
 def prepare_worker() -> None:
-    """Once per worker before the tasks: the signal guard, and the physics import (which loads or
-    compiles its numba functions) paid up front rather than inside the first clip's seconds."""
-    allow_cli_off_main_thread()
+    """Once per worker before the tasks: the physics import (which loads or compiles its numba
+    functions) paid up front rather than inside the first clip's seconds."""
     __import__("retime.physics.api")
 
 
@@ -77,7 +61,6 @@ def _error_line(stderr: str, returncode) -> str:
 def run_clip(argv: list[str]) -> dict:
     """One clip, on a worker: ``retime.cli.main(argv)`` with its output captured. Never raises for
     the clip's own failures; those come back as {'status': 'failed', 'error': one line}."""
-    allow_cli_off_main_thread()  # a worker that joined after prepare_worker ran
     from ..cli import main
 
     start = time.perf_counter()
@@ -92,7 +75,7 @@ def run_clip(argv: list[str]) -> dict:
         return {"status": "failed", "error": f"{type(e).__name__}: {e}".splitlines()[0],
                 "seconds": time.perf_counter() - start}
     seconds = time.perf_counter() - start
-    if code == 0:
+    if code == 0 or (argv[0] == "check" and code == 1):  # check's 1 is a verdict (not physical), not a failure
         return {"status": "done", "error": "", "seconds": seconds}
     return {"status": "failed", "error": _error_line(err.getvalue(), code), "seconds": seconds}
 
@@ -152,7 +135,7 @@ def run_batch(clips: list[Clip], outdir: Path, method: str, *, gravity_scale: fl
     unfinished, stopped = "interrupted before it finished", None
     try:
         for i in todo:
-            outputs[i]["bvh"].parent.mkdir(parents=True, exist_ok=True)
+            next(iter(outputs[i].values())).parent.mkdir(parents=True, exist_ok=True)
         if todo:
             _compute(client, clips, outputs, digests, todo, results, manifest, method, gravity_scale, quiet)
     except KeyboardInterrupt:
@@ -167,7 +150,11 @@ def run_batch(clips: list[Clip], outdir: Path, method: str, *, gravity_scale: fl
             results[i] = {"status": "failed", "error": unfinished, "seconds": None}
     manifest.save()
     rows = [clip_row(shown[i], **results[i], outputs=outputs[i]) for i in range(len(clips))]
-    curves = [read_warp(o["warp"]) if r["status"] != "failed" else None for o, r in zip(outputs, rows)]
+    curves = [read_warp(o["warp"]) if r["status"] != "failed" and "warp" in o else None for o, r in zip(outputs, rows)]
+    if method == "check":  # the library ranked from least to most physical (failed clips last)
+        order = sorted(range(len(rows)), key=lambda i: (rows[i]["status"] == "failed",
+                                                        -float(rows[i]["off_share"] or 0.0)))
+        rows, curves = [rows[i] for i in order], [curves[i] for i in order]
     write_summary_csv(rows, outdir / "summary.csv")
     write_index_html(rows, curves, outdir / "index.html", title=f"retime batch: {method}")
     if isinstance(stopped, RetimeError):

@@ -11,7 +11,7 @@ from pathlib import Path
 from ..io_util import atomic_write
 
 COLUMNS = ("input", "status", "error", "source_duration", "output_duration", "flight_speeds",
-           "feasible_fraction", "least_duration", "source_physical", "seconds")
+           "feasible_fraction", "least_duration", "source_physical", "off_share", "seconds")
 
 
 def clip_row(input_text: str, status: str, error: str, seconds: float | None, outputs: dict[str, Path]) -> dict:
@@ -20,13 +20,17 @@ def clip_row(input_text: str, status: str, error: str, seconds: float | None, ou
     row.update(input=input_text, status=status, error=error, seconds="" if seconds is None else f"{seconds:.2f}")
     if status == "failed":
         return row
-    curve = read_warp(outputs["warp"])
+    curve = read_warp(outputs["warp"]) if "warp" in outputs else None
     if curve is not None:
         row["output_duration"], row["source_duration"] = f"{curve[-1][0]:.6g}", f"{curve[-1][1]:.6g}"
     if "report" in outputs:
         try:
             summary = json.loads(outputs["report"].read_text(encoding="utf-8"))["summary"]
         except (OSError, ValueError, KeyError, TypeError):
+            return row
+        if "physical" in summary:  # a check report (retime check): the verdict and its share of bad frames
+            row.update(source_physical=_flag(summary.get("physical")), off_share=_number(summary.get("off_share")),
+                       flight_speeds="")
             return row
         flights = [p.get("speed") for p in summary.get("phases", []) if p.get("state") == "flight"]
         row.update(
@@ -35,7 +39,8 @@ def clip_row(input_text: str, status: str, error: str, seconds: float | None, ou
             flight_speeds=";".join(_number(s) for s in flights if s is not None),
             feasible_fraction=_number(summary.get("feasible_fraction")),
             least_duration=_number(summary.get("least_duration")),
-            source_physical=_flag((summary.get("source_check") or {}).get("physical")))
+            source_physical=_flag((summary.get("source_check") or {}).get("physical")),
+            off_share=_number((summary.get("source_check") or {}).get("off_share")))
     return row
 
 

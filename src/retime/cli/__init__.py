@@ -6,6 +6,7 @@ import importlib
 import os
 import signal
 import sys
+import threading
 
 from ..errors import RetimeError
 from ..io_util import all_or_none
@@ -44,12 +45,16 @@ def main(argv=None) -> int:
     try:
         if args.command in ("edit", "batch"):  # a server, a batch: their outputs commit one by one
             return int(args.func(args) or 0)
-        previous = signal.signal(signal.SIGTERM, _terminate)
+        # Python lets only the main thread set handlers: run from another thread (a Dask task, a
+        # notebook's worker) the process's own SIGTERM handling stays, and the transaction holds anyway
+        on_main = threading.current_thread() is threading.main_thread()
+        previous = signal.signal(signal.SIGTERM, _terminate) if on_main else None
         try:
             with all_or_none():  # the command's outputs appear together, or none of them
                 return int(args.func(args) or 0)
         finally:
-            signal.signal(signal.SIGTERM, previous)
+            if on_main:
+                signal.signal(signal.SIGTERM, previous)
     except Terminated:
         print(f"retime {args.command}: terminated; no output written", file=sys.stderr)
         return 143

@@ -28,7 +28,8 @@ def register(sub):
     p.add_argument("inputs", nargs="+", metavar="INPUT",
                    help=".bvh or .amc files, folders (walked for them), or jobs files (.csv, .toml)")
     p.add_argument("-o", "--output", required=True, metavar="OUTDIR", help="folder for the outputs (created if needed)")
-    p.add_argument("--method", required=True, choices=("linear", "guided", "physics"), help="the retiming method")
+    p.add_argument("--method", required=True, choices=("linear", "guided", "physics", "check"),
+                   help="the retiming method, or check: each clip's physical plausibility as captured, ranked")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--duration", type=positive_float, metavar="SEC", help="every clip's output duration in seconds")
     g.add_argument("--scale", type=positive_float, metavar="X", help="outputs last X times as long as their inputs")
@@ -52,6 +53,8 @@ def run(args):
         raise RetimeError("--reference is for --method guided")
     if args.gravity_scale is not None and args.method != "physics":
         raise RetimeError("--gravity-scale is for --method physics")
+    if args.method == "check" and (args.duration is not None or args.scale is not None or args.keytime):
+        raise RetimeError("check judges each clip's own timing: drop --duration, --scale and --keytime")
     if args.scheduler and args.workers:
         raise RetimeError("--workers sizes the local cluster; a --scheduler has its own workers")
     outdir = Path(args.output)
