@@ -17,12 +17,15 @@ from retime.data import bundled_path  # noqa: E402
 from retime.editor.server import BackgroundServer, create_app, load_clip  # noqa: E402
 
 DEEP = "[" * 30000 + "]" * 30000
+STORES = []
 
 
 @pytest.fixture(scope="module")
 def served(tmp_path_factory):
     outdir = tmp_path_factory.mktemp("out")
-    with BackgroundServer(create_app(load_clip(bundled_path("16_33.amc")), outdir)) as url:
+    app = create_app(load_clip(bundled_path("16_33.amc")), outdir)
+    STORES.append(getattr(app, "app", app).state.store)  # the session store behind the loopback guard
+    with BackgroundServer(app) as url:
         yield url, outdir
 
 
@@ -115,8 +118,4 @@ def test_the_edit_history_keeps_only_edit_fields(served):
 
 
 def served_session(sid):
-    import gc
-
-    from retime.editor.sessions import SessionStore
-
-    return next(o.sessions[sid] for o in gc.get_objects() if isinstance(o, SessionStore) and sid in o.sessions)
+    return next(store.sessions[sid] for store in STORES if sid in store.sessions)
