@@ -40,6 +40,9 @@ VARIANTS = {
     "travel split": lambda m: V.add_dummy_root(m, share=0.5),
     "dummy root with IK targets": lambda m: V.add_dummy_root(m, share=1.0, props=2),
     "6 channels": lambda m: V.six_channels(m),
+    "all at once: a Z-up Xsens rig in cm under a dummy root with an IK target":
+        lambda m: V.turn_up(V.rename(V.add_dummy_root(V.rescale(m, 100 * m.skeleton.meters_per_unit), share=0.5,
+                                                      props=1), "xsens"), "+z"),
 }
 
 

@@ -85,10 +85,12 @@ _CONVENTIONS = {
 def rename(motion: Motion, convention: str = "mixamo") -> Motion:
     """Joint names in another rig's convention: limbs by their role (the limbs found when the
     motion was loaded), other joints prefixed as that convention prefixes them."""
+    from .frame import detect_frame
+
     conv = _CONVENTIONS[convention]
     sk = motion.skeleton
     roles = {}
-    limbs = sk.frame.limbs if sk.frame is not None else None
+    limbs = detect_frame(motion).limbs  # found afresh: a frame recorded before another variant is stale
     if limbs is not None:
         for side, (thigh, shank, foot, toe) in limbs.legs.items():
             roles.update({thigh: (side, "thigh"), shank: (side, "shank"), foot: (side, "foot")})
