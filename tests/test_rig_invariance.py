@@ -256,3 +256,20 @@ def test_renderer_and_editor_stand_every_file_up(jump_curves, tmp_path):
     pa, _ = skeleton_payload(Clip("a", original, None, None))
     pb, _ = skeleton_payload(Clip("b", v, None, None))
     assert np.allclose(np.frombuffer(pa, "<f4"), np.frombuffer(pb, "<f4"), atol=1e-4)
+
+
+def test_info_prints_what_was_detected_and_the_floating_base(jump_curves, tmp_path, capsys):
+    from retime.cli import main
+
+    original, _ = jump_curves
+    path = tmp_path / "zup_dummy.bvh"
+    save_bvh(V.six_channels(V.add_dummy_root(V.turn_up(original, "+z"), share=0.5, props=1)), path)
+    assert main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "up        +z (detected, 100% of frames agree)" in out
+    assert "units     metres" in out and "sure" in out
+    assert "floating base is 'root' (below the dummy root 'Reference')" in out
+    assert "IK_Target0" in out and "read as fixed bones" in out
+    assert main(["info", str(path), "--up", "y", "--units", "cm"]) == 0
+    out = capsys.readouterr().out
+    assert "up        +y (given)" in out and "centimetres" in out and "given" in out

@@ -31,6 +31,17 @@ def run(args):
         else:
             print(f"size      rest pose {rest_height(sk) * sk.meters_per_unit:.2f} m tall; not a biped ({g.biped})")
     print(f"angles    {'radians (detected)' if sk.angles == 'rad' and not getattr(args, 'angles', None) else sk.angles}")
+    from ..motion.conform import BoneStretch, conform
+
+    try:
+        conformed = conform(m)
+    except BoneStretch as e:
+        print(f"bones     {e}")
+    else:
+        for note in conformed.notes():
+            print(f"physics   {note}")
+        if conformed.fixed_bones:
+            print(f"physics   {len(conformed.fixed_bones)} joint(s) with constant position channels read as fixed bones")
     for j, name in enumerate(sk.names):
         parent = sk.names[sk.parents[j]] if sk.parents[j] >= 0 else "-"
         print(f"  {name:<16} parent {parent:<16} dof {' '.join(sk.dof[j]) or '-'}")

@@ -9,6 +9,10 @@ give it the same timing curve (the tests check this on real files):
   Second Life, Xsens);
 * :func:`add_dummy_root` - a reference joint above the hips, holding all, none or part of the travel;
 * :func:`six_channels` - position channels on every joint, holding the bone offset.
+
+A variant stands for a file: write it out and read it back (or pass it to
+:func:`retime.motion.with_detected_frame`) before retiming it, so that its up axis, units and limbs
+are detected as a reader would.
 """
 from __future__ import annotations
 
