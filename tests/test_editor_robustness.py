@@ -119,3 +119,19 @@ def test_the_edit_history_keeps_only_edit_fields(served):
 
 def served_session(sid):
     return next(store.sessions[sid] for store in STORES if sid in store.sessions)
+
+
+def test_a_solve_whose_page_has_gone_stops():
+    from retime.physics.api import prepare
+    from retime.physics.regions import Cancelled
+    from retime.motion import load_motion
+
+    asked = []
+
+    def gone():
+        asked.append(1)
+        return len(asked) > 5  # the page closes while the regions are computed
+
+    with pytest.raises(Cancelled):
+        prepare(load_motion(bundled_path("16_33.amc")), cancel=gone)
+    assert len(asked) == 6  # stopped at the next frame, not at the end

@@ -56,7 +56,7 @@ def check_outputs(outputs, inputs=()):
             raise RetimeError(f"{output}: cannot write in the folder {directory} (permission denied)")
         check_not_input(output, *inputs)
         for other in seen:
-            if _same_file(Path(other), path) or Path(other).resolve() == path.resolve():
+            if _same_file(Path(other), path):
                 raise RetimeError(f"{output}: given for two outputs; choose a different file for each")
         seen.append(output)
 

@@ -70,34 +70,22 @@ def add_duration_args(p, free=False):
                    help="source time SRC (s) plays at output time DST (s); repeat for several")
 
 
-def positive_float(text):
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (v > 0) or v == float("inf"):
-        raise argparse.ArgumentTypeError(f"must be a positive number, got {text}")
-    return v
+def _number_type(convert, ok, what, kind="number"):
+    """An argparse type: ``convert`` the text, then require ``ok(value)`` (saying ``what`` if not)."""
+    def parse(text):
+        try:
+            v = convert(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a {kind}") from None
+        if not ok(v):
+            raise argparse.ArgumentTypeError(f"must be {what}, got {text}")
+        return v
+    return parse
 
 
-def positive_int(text):
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
-    return v
-
-
-def nonnegative_float(text):
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (0 <= v < float("inf")):
-        raise argparse.ArgumentTypeError(f"must be a finite number of at least 0, got {text}")
-    return v
+positive_float = _number_type(float, lambda v: 0 < v < float("inf"), "a positive number")
+positive_int = _number_type(int, lambda v: v >= 1, "at least 1", kind="whole number")
+nonnegative_float = _number_type(float, lambda v: 0 <= v < float("inf"), "a finite number of at least 0")
 
 
 def keytime(text):

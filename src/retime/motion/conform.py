@@ -112,7 +112,7 @@ def _keep(skeleton: Skeleton, rotations, translations, keep):
     return sk, rotations[:, keep], translations[:, keep]
 
 
-def _rigid(skeleton: Skeleton, translations, fps):
+def _rigid(skeleton: Skeleton, translations):
     """Mean translations of the non-root joints, the fixed bones and the largest stretch."""
     mpu = skeleton.meters_per_unit
     tr = translations.copy()
@@ -153,7 +153,7 @@ def conform(motion: Motion, max_stretch: float = MAX_STRETCH) -> Conformed:
             sk, rot, tr = _keep(sk, rot, tr, [j for j in range(sk.n_joints) if j not in set(extra)])
         removed.append(sk.names[0])
         sk, rot, tr = _drop_root(sk, rot, tr)
-    sk, tr, fixed, worst = _rigid(sk, tr, motion.fps)
+    sk, tr, fixed, worst = _rigid(sk, tr)
     if worst is not None and _severity(worst) * MAX_STRETCH > max_stretch:
         raise BoneStretch(worst)
     R = up_rotation(sk.up)

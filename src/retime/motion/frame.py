@@ -16,10 +16,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .fk import forward_kinematics
-from .rig import Limbs, NotBiped, find_limbs, floating_base, nearest_pair_tips
+from .model import LENGTH_UNITS
+from .rig import Limbs, NotBiped, find_limbs, floating_base, nearest_pair_tips, part_of
 
 AXES = {"x": 0, "y": 1, "z": 2}
-UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254, "ft": 0.3048, "cmu": 0.0254 / 0.45}
+UNITS = {k: v for k, v in LENGTH_UNITS.items() if k != "dm"}  # the units files are written in
 UNIT_NAMES = {"m": "metres", "cm": "centimetres", "mm": "millimetres", "in": "inches", "ft": "feet",
               "cmu": "CMU units (1/0.45 in)"}
 TYPICAL_LEG_M = 0.84  # thigh + shank of an adult (hip joint to ankle joint)
@@ -97,13 +98,6 @@ class FrameGuess:
     biped: str = ""
     up_given: bool = False  # why the skeleton is not a biped ('' if it is one)
 
-    def describe(self) -> str:
-        unit = UNIT_NAMES.get(self.unit, self.unit)
-        up = f"up {self.up} ({'given' if self.up_given else f'{self.up_confidence:.0%} of frames agree'})"
-        top = "head" if self.limbs is not None and self.limbs.head is not None else "root"
-        size = f"; {top} {self.height_m:.2f} m above the feet" if np.isfinite(self.height_m) else ""
-        return f"{up}; units {unit} (1 unit = {self.meters_per_unit:.6g} m, {self.unit_confidence}){size}"
-
 
 def _sample_frames(n_frames):
     step = max(1, int(np.ceil(n_frames / MAX_FRAMES)))
@@ -132,7 +126,6 @@ def _leg_length(motion, limbs):
     for thigh, _, foot, _ in limbs.legs.values():
         top = thigh
         while sk.parents[top] >= 0 and top != 0:
-            from .rig import part_of
             p = int(sk.parents[top])
             if part_of(sk.names[p]) != "thigh":
                 break

@@ -70,11 +70,6 @@ _CONVENTIONS = {
                "parts": {"thigh": "Hip", "shank": "Knee", "foot": "Ankle", "toe": "Foot", "upperarm": "Shoulder",
                          "forearm": "Elbow", "hand": "Wrist", "clavicle": "Collar", "head": "Head", "neck": "Neck"},
                "other": "{name}"},
-    "secondlife": {"side": {"left": "Left", "right": "Right"}, "fmt": "m{part}{side}",
-                   "parts": {"thigh": "Hip", "shank": "Knee", "foot": "Ankle", "toe": "Foot", "upperarm": "Shoulder",
-                             "forearm": "Elbow", "hand": "Wrist", "clavicle": "Collar", "head": "Head",
-                             "neck": "Neck"},
-                   "other": "m{name}"},
     "xsens": {"side": {"left": "Left", "right": "Right"}, "fmt": "{side}{part}",
               "parts": {"thigh": "UpperLeg", "shank": "LowerLeg", "foot": "Foot", "toe": "Toe", "upperarm": "UpperArm",
                         "forearm": "ForeArm", "hand": "Hand", "clavicle": "Shoulder", "head": "Head", "neck": "Neck"},
@@ -84,6 +79,10 @@ _CONVENTIONS = {
                         "forearm": "Forearm", "hand": "Hand", "clavicle": "Clavicle", "head": "Head", "neck": "Neck"},
               "other": "Bip01 {name}"},
 }
+
+
+# Second Life names are Kinect's with an "m" before them (mHipLeft, mKneeLeft, ...)
+_CONVENTIONS["secondlife"] = dict(_CONVENTIONS["kinect"], fmt="m{part}{side}", other="m{name}")
 
 
 def rename(motion: Motion, convention: str = "mixamo") -> Motion:

@@ -318,7 +318,7 @@ def classify_segments(skeleton, feet=None) -> dict[int, str]:
     return seg
 
 
-def _limb_side(limbs, seg, j, parents):
+def _limb_side(limbs, j, parents):
     """'left' or 'right' for a joint of a sided segment: the side of the limb it hangs from."""
     for side, chain in list(limbs.legs.items()) + list(limbs.arms.items()):
         k = j
@@ -367,7 +367,7 @@ def default_body(skeleton, mass=None, feet_names=None, motion=None, frames=None)
     for j, s in seg.items():
         side = None
         if s in SIDED:
-            side = _limb_side(limbs, seg, j, skeleton.parents) if limbs is not None else None
+            side = _limb_side(limbs, j, skeleton.parents) if limbs is not None else None
             if side is None:
                 side = "left" if rest[j, 0] - rest[0, 0] > 0 else "right"
             for sd, (foot, _) in feet_idx.items():

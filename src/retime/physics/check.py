@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .plausibility import OFF_RESIDUAL, SourceCheck, check_source
+from .plausibility import OFF_RESIDUAL, SourceCheck, check_source, sole_point_velocity
 
 G = 9.81
 FLIGHT_G_TOL = 0.35  # real jumps, through the dynamics' 0.05 s low-pass: 0.85-1.05 g
@@ -113,13 +113,8 @@ def _com_accel(terms) -> np.ndarray:
 
 
 def _foot_slide(terms) -> np.ndarray:
-    spf = int(terms.samples_per_frame)
-    corners = np.asarray(terms.corners)[::spf]
-    contact = np.asarray(terms.contact, dtype=bool)[::spf]
-    if len(corners) < 3:
-        return np.zeros(len(corners))
-    mid = 0.5 * (corners[:, 0::2] + corners[:, 1::2])  # (F, 4, 3)
-    speed = np.linalg.norm(np.gradient(mid[..., [0, 2]], axis=0), axis=-1) * float(terms.fps)
+    contact = np.asarray(terms.contact, dtype=bool)[::int(terms.samples_per_frame)]
+    speed = np.linalg.norm(sole_point_velocity(terms), axis=-1)  # (F, 4)
     return np.where(contact, speed, 0.0).max(axis=1)
 
 

@@ -49,6 +49,16 @@ class SourceCheck:
                 "median_residual": round(self.median_residual, 4), "causes": list(self.causes)}
 
 
+def sole_point_velocity(terms) -> np.ndarray:
+    """(F, 4, 2) horizontal velocity (m/s, x and z) of each contact point (the midpoint of its two
+    sole corners) at the motion's frames."""
+    corners = np.asarray(terms.corners)[::int(terms.samples_per_frame)]
+    mid = 0.5 * (corners[:, 0::2] + corners[:, 1::2])
+    if len(mid) < 2:
+        return np.zeros(mid.shape[:2] + (2,))
+    return np.gradient(mid[..., [0, 2]], axis=0) * float(terms.fps)
+
+
 def floor_slide(terms) -> tuple[float, float]:
     """(median horizontal speed m/s, steadiness 0-1) of the sole points while they are at floor
     height (within 3 cm of the local floor, :func:`.contacts.local_floor`), whether or not contact
@@ -56,14 +66,12 @@ def floor_slide(terms) -> tuple[float, float]:
     feet are carried one way, as on a treadmill; near 0 for skating back and forth."""
     from .contacts import local_floor
 
-    spf = int(terms.samples_per_frame)
-    corners = np.asarray(terms.corners)[::spf]  # (F, 8, 3), y up
+    corners = np.asarray(terms.corners)[::int(terms.samples_per_frame)]  # (F, 8, 3), y up
     if len(corners) < 3:
         return 0.0, 0.0
     low = np.minimum(corners[:, 0::2, 1], corners[:, 1::2, 1])  # (F, 4)
     height = low - local_floor(low, terms.fps)[:, None]
-    mid = 0.5 * (corners[:, 0::2] + corners[:, 1::2])
-    v = np.gradient(mid[..., [0, 2]], axis=0) * terms.fps  # (F, 4, 2)
+    v = sole_point_velocity(terms)
     on_floor = height < 0.03
     if not on_floor.any():
         return 0.0, 0.0
