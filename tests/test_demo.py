@@ -76,14 +76,14 @@ def test_all_three_methods_ran(demo):
 
 
 def test_feasible_fraction_agrees_with_the_physics_report(demo):
-    """The demo's feasibility test, applied to the physics curve, gives the physics report's number
-    (two independent computations of p', p'' and the region test)."""
-    from retime.report.demo import feasible_fraction
+    """Feasibility of the physics curve as any curve (p', p'' by differences of its samples) gives the
+    report's number (p', p'' of the spline itself): two computations of the derivatives, one test."""
+    from retime.physics.feasibility import curve_feasibility
 
     phys = next(m for m in demo.methods if m.name == "physics")
     if phys.physics is None:
         pytest.skip("the physics method returned no regions")
-    mine = feasible_fraction(phys.curve, phys.physics, demo.fps)
+    mine = curve_feasibility(phys.curve, phys.physics.dynamics, phys.physics.regions, demo.fps).fraction
     assert mine == pytest.approx(phys.feasible_fraction, abs=0.05)
     for m in demo.methods:
         assert 0.0 <= m.feasible_fraction <= 1.0

@@ -102,7 +102,7 @@ def test_cli_writes_motion_warp_report_and_body(tmp_path):
 
 @pytest.mark.parametrize("args,msg", [
     (["--mass", "nosuch=2"], "no segment named 'nosuch'"),
-    (["--keytime", "99=1"], "outside the motion"),
+    (["--keytime", "99=1"], "outside the clip"),
 ])
 def test_cli_errors_are_one_line(tmp_path, capsys, args, msg):
     code = main(["physics", str(bundled_path("16_06.amc")), "-o", str(tmp_path / "o.bvh"), "--quiet", *args])

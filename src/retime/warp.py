@@ -258,14 +258,16 @@ def keytime_warp(source_duration: float, keytimes=(), duration=None, smooth=Fals
     return TimingCurve(dst, src, kind="pchip" if smooth and len(src) > 2 else "linear")
 
 
-def check_keytimes(keytimes, source_duration, duration):
-    """Keytimes sorted by source time, checked to be inside the clip and in the same order in both."""
+def check_keytimes(keytimes, source_duration, duration=None):
+    """Keytimes sorted by source time, checked to be inside the clip and in the same order in both
+    (``duration`` None: a free duration, any positive output time)."""
     keys = sorted((float(a), float(b)) for a, b in keytimes)
     for src, dst in keys:
         if not (0.0 < src < source_duration):
             raise RetimeError(f"keytime {src:g}={dst:g}: source time {src:g}s is outside the clip (0, {source_duration:g}s)")
-        if not (0.0 < dst < duration):
-            raise RetimeError(f"keytime {src:g}={dst:g}: output time {dst:g}s is outside the output (0, {duration:g}s)")
+        if not (0.0 < dst < (np.inf if duration is None else duration)):
+            end = "end" if duration is None else f"{duration:g}s"
+            raise RetimeError(f"keytime {src:g}={dst:g}: output time {dst:g}s is outside the output (0, {end})")
     for (s0, d0), (s1, d1) in zip(keys, keys[1:]):
         if s1 == s0 or d1 <= d0:
             raise RetimeError(f"keytimes {s0:g}={d0:g} and {s1:g}={d1:g} are out of order or collide: "

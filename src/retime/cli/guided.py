@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 
 from ..errors import RetimeError
+from ..method import Request, solve
 from ..motion import load_motion
 from ..warp import apply_timing
 from .common import check_found_inputs, frame_kwargs, add_duration_args, add_motion_args, add_output_args, check_output, load_input, nonnegative_float, positive_float, positive_int, write_outputs
@@ -76,15 +77,16 @@ def run(args):
     if args.reference:
         reference = load_motion(args.reference, fps=args.reference_fps, **frame_kwargs(args))
         check_found_inputs(args, reference)
-    from ..guided import adaptive_smooth, guided_solve
-    from ..jit import compile_watch, stderr_if
+    from ..guided import adaptive_smooth
+    from ..guided.method import Settings
 
-    with compile_watch(stderr_if(not args.quiet)):
-        result = guided_solve(
-            motion, reference, duration=args.duration, scale=args.scale, free=bool(getattr(args, "free", False)),
-            keytimes=args.keytime, max_skip=args.max_skip, neighbors=args.neighbors, fast=args.fast,
-            analysis_fps=args.analysis_fps, weights=args.weights, upsample=args.upsample, smoothing=args.smoothing,
-            knn="approx" if args.approx is not None else "exact", eps=args.approx or 0.0, quiet=args.quiet)
+    settings = Settings(reference=reference, free=bool(getattr(args, "free", False)), max_skip=args.max_skip,
+                        neighbors=args.neighbors, fast=args.fast, analysis_fps=args.analysis_fps, weights=args.weights,
+                        upsample=args.upsample, smoothing=args.smoothing,
+                        knn="approx" if args.approx is not None else "exact", eps=args.approx or 0.0,
+                        progress=not args.quiet)
+    answer = solve("guided", motion, Request(args.duration, args.scale, args.keytime, settings))
+    result = answer.detail
     curve = result.curve
     retimed = adaptive_smooth(motion, curve) if args.adaptive_smoothing else apply_timing(motion, curve)
     write_outputs(args, motion, curve, retimed)

@@ -1,6 +1,7 @@
 from ..errors import RetimeError
-from ..warp import apply_timing, keytime_warp, scale_warp
-from .common import add_duration_args, add_motion_args, add_output_args, check_output, load_input, target_duration, write_outputs
+from ..method import Request, solve
+from ..warp import apply_timing
+from .common import add_duration_args, add_motion_args, add_output_args, check_output, load_input, write_outputs
 
 
 def register(sub):
@@ -18,15 +19,14 @@ def register(sub):
 
 
 def run(args):
+    from ..linear import Settings
+
     check_output(args)
     m = load_input(args)
     if args.duration is None and args.scale is None and not args.keytime:
         raise RetimeError("say how to retime: --duration SEC, --scale X or at least one --keytime SRC=DST")
     if m.n_frames < 2:
         raise RetimeError(f"{args.motion}: a single frame has no timing to change")
-    if args.scale is not None and not args.keytime:
-        curve = scale_warp(m.duration, args.scale, m.fps)
-    else:
-        curve = keytime_warp(m.duration, args.keytime, target_duration(args, m), smooth=args.smooth)
-    write_outputs(args, m, curve, apply_timing(m, curve))
+    result = solve("linear", m, Request(args.duration, args.scale, args.keytime, Settings(smooth=args.smooth)))
+    write_outputs(args, m, result.curve, apply_timing(m, result.curve))
     return 0

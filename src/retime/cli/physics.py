@@ -4,10 +4,10 @@ from __future__ import annotations
 import argparse
 import math
 
-from ..errors import RetimeError
+from ..physics.method import MASS_FACTORS, MAX_GRAVITY
 from ..warp import apply_timing
 from .common import add_duration_args, add_motion_args, add_output_args, check_output, load_input, positive_float, \
-    target_duration, write_outputs
+    write_outputs
 
 EPILOG = """examples:
   retime physics 16_06.amc -o half.bvh --scale 0.5 --report half.json
@@ -33,8 +33,6 @@ def _vector3(text):
     return tuple(v)
 
 
-MAX_GRAVITY = 1000.0  # m/s^2: a hundred g
-MASS_FACTORS = (1e-3, 1e3)
 
 
 def _gravity_scale(text):
@@ -92,33 +90,22 @@ def register(sub):
 
 
 def run(args):
-    from ..physics.api import physics_warp
+    from ..method import Request, solve
+    from ..physics.method import Settings
     from ..physics.report import flight_speeds, write_report
 
     check_output(args)
     m = load_input(args)
-    if m.n_frames < 4:
-        raise RetimeError(f"{args.motion}: physics needs at least 4 frames, the motion has {m.n_frames}")
-    from ..motion.frame import up_vector
-
-    gravity = None  # 9.81 down the file's up axis
-    if args.gravity is not None:
-        gravity = args.gravity
-    elif args.gravity_scale is not None:
-        gravity = tuple(-9.81 * args.gravity_scale * up_vector(m.skeleton.up))
     masses = {}
     for name, f in args.mass:
-        if name not in m.skeleton.names:
-            raise RetimeError(f"--mass {name}={f:g}: no segment named {name!r}; segments: {', '.join(m.skeleton.names)}")
         masses[name] = masses.get(name, 1.0) * f
-    from ..physics.optimize import check_keytimes
-
-    duration = target_duration(args, m)
-    check_keytimes(args.keytime, m.duration, duration)  # before the dynamics: fail fast
-    result = physics_warp(m, duration=duration, gravity=gravity, mass_factors=masses or None,
-                          objective=args.objective, keytimes=args.keytime, body=args.body, contacts=args.contacts,
-                          friction=args.friction, torque_scale=args.torque_scale, method=args.method,
-                          progress=not args.quiet, start=args.start)
+    settings = Settings(gravity=args.gravity, gravity_scale=args.gravity_scale, mass_factors=masses,
+                        objective=args.objective, body=args.body, contacts=args.contacts, friction=args.friction,
+                        torque_scale=args.torque_scale, optimizer=args.method, start=args.start,
+                        progress=not args.quiet)
+    answer = solve("physics", m, Request(args.duration, args.scale, args.keytime, settings))
+    result = answer.detail
+    duration = Request(args.duration, args.scale).output_duration(m)
     write_outputs(args, m, result.curve, apply_timing(m, result.curve))
     if args.report:
         write_report(result.report, args.report)

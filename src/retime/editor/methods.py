@@ -14,7 +14,6 @@ physics treat them as handles the optimizer may move.
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import math
 import threading
 from dataclasses import dataclass, field
@@ -23,7 +22,8 @@ from typing import Callable, Iterator
 import numpy as np
 
 from ..errors import RetimeError
-from ..warp import TimingCurve, keytime_warp
+from ..method import Request, solve
+from ..warp import TimingCurve
 
 
 @dataclass
@@ -173,9 +173,11 @@ class LinearMethod(Method):
                     help="monotone cubic (PCHIP) through the control points instead of straight lines"),)
 
     def solve(self, job):
-        S = self.clip.motion.duration
-        curve = keytime_warp(S, keytimes_of(job.points), duration=job.duration, smooth=job.params.get("smooth", False))
-        yield Solution(curve, info={"keytimes": len(job.points) - 2})
+        from ..linear import Settings
+
+        request = Request(duration=job.duration, keytimes=keytimes_of(job.points),
+                          settings=Settings(smooth=bool(job.params.get("smooth", False))))
+        yield Solution(solve("linear", self.clip.motion, request).curve, info={"keytimes": len(job.points) - 2})
 
 
 class GuidedMethod(Method):
@@ -196,15 +198,8 @@ class GuidedMethod(Method):
         Param("fast", "Coarse-to-fine", "bool", False, help="the heuristic of Hsu §3.3 instead of the exact search"),
     )
 
-    @classmethod
-    def availability(cls, clip):
-        mod = _optional("retime.guided")
-        if mod is None or not hasattr(mod, "guided_solve"):
-            return "guided time warping is not installed in this build (retime.guided.guided_solve is missing)"
-        return None
-
     def solve(self, job):
-        from ..guided import guided_solve  # noqa: PLC0415 (optional method)
+        from ..guided.method import Settings
 
         params = job.params
         reference = None
@@ -213,11 +208,11 @@ class GuidedMethod(Method):
                 raise RetimeError("no reference motion: start the editor with --reference REF to use one")
             reference = self.clip.reference
         keys = keytimes_of(job.points, locked_only=True)
-        result = guided_solve(self.clip.motion, reference, duration=job.duration, keytimes=keys,
-                              max_skip=int(params.get("max_skip", 8)), neighbors=int(params.get("neighbors", 3)),
-                              fast=bool(params.get("fast", False)))
+        settings = Settings(reference=reference, max_skip=int(params.get("max_skip", 8)),
+                            neighbors=int(params.get("neighbors", 3)), fast=bool(params.get("fast", False)))
+        result = solve("guided", self.clip.motion, Request(duration=job.duration, keytimes=keys, settings=settings))
         curve = result.curve
-        info = {"keytimes": len(keys), "objective": float(result.objective), "exact": bool(result.exact)}
+        info = {"keytimes": len(keys), "objective": result.info["objective"], "exact": result.info["exact"]}
         yield Solution(curve, points=_follow(job.points, curve), info=info)
 
 
@@ -264,13 +259,6 @@ class PhysicsMethod(Method):
             Param("alpha", "Feasibility weight", "number", 10.0, 0.1, 10000.0, 1.0,
                   help="α of Eq. 14 (torque matching has weight 1)"),
         )
-
-    @classmethod
-    def availability(cls, clip):
-        api = _optional("retime.physics.api")
-        if api is None or not all(hasattr(api, n) for n in ("prepare", "make_problem")):
-            return "physics retiming is not installed in this build (retime.physics.api is missing)"
-        return None
 
     def __init__(self, clip):
         super().__init__(clip)
@@ -383,20 +371,19 @@ class PhysicsMethod(Method):
                "keytimes": len(rs.keytimes), "constraint_violation": info.constraint_violation}
         feas = None
         if final:
-            feas = _feasibility(rs.spline, self.prepared[2], fps)
-            out["feasible_fraction"] = round(float(np.mean(feas >= 1.0)), 4)
+            from ..physics.feasibility import spline_feasibility
+
+            found = spline_feasibility(rs.spline, self.prepared[1], self.prepared[2], fps)
+            feas = strip_shade(found.residual, found.tol)
+            out["feasible_fraction"] = round(found.fraction, 4)
         return Solution(curve, points=pts, feasibility=feas, info=out, final=final, keytimes=list(rs.keytimes))
 
 
-def _feasibility(spline, regions, fps, tol=1e-2):
-    """Per output frame: 1 inside the frame's feasible region (within tol), falling to 0 at 100 x tol."""
-    T = spline.duration
-    t = np.minimum(np.arange(int(round(T * fps)) + 1) / fps, T)
-    s, v, u = spline(t), spline.speed(t) ** 2, spline.accel(t)
-    times = np.asarray(regions.times, dtype=float)
-    idx = np.clip(np.rint(np.interp(s, times, np.arange(len(times)))).astype(int), 0, len(times) - 1)
-    d = regions.distances(idx, u, v)
-    return np.where(d <= tol, 1.0, np.clip(1.0 - np.log10(np.maximum(d, tol) / tol) / 2.0, 0.0, 0.95))
+def strip_shade(residual, tol):
+    """The page's strip per output frame: 1 in the region (residual within tol), falling to 0 at 100 x
+    tol (a log scale of the residual, capped at 0.95 outside)."""
+    r = np.asarray(residual, dtype=float)
+    return np.where(r <= tol, 1.0, np.clip(1.0 - np.log10(np.maximum(r, tol) / tol) / 2.0, 0.0, 0.95))
 
 
 _PHYSICS_CACHE: dict = {}  # (id(motion), key) -> (terms, pd, regions, obj); a few entries
@@ -455,13 +442,6 @@ def _limb_roots(clip):
     n_children = [parents.count(j) for j in range(len(parents))]
     return [sk.names[j] for j in range(1, len(parents))
             if parents[j] >= 0 and (parents[j] == 0 or n_children[parents[j]] > 1) and n_children[j] > 0]
-
-
-def _optional(name):
-    try:
-        return importlib.import_module(name)
-    except ImportError:
-        return None
 
 
 METHODS: dict[str, type[Method]] = {m.name: m for m in (LinearMethod, GuidedMethod, PhysicsMethod)}

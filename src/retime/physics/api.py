@@ -54,7 +54,8 @@ from .fastest import fastest_timing
 from .globalstart import global_start, soften
 from .objective import BakedObjective, bake, target_torques
 from .plausibility import check_source
-from .optimize import Problem, RetimingSession, SolveInfo, check_keytimes, solve
+from ..warp import check_keytimes
+from .optimize import Problem, RetimingSession, SolveInfo, solve
 from .regions import RegionOptions, RegionSet, compute_regions
 from .report import build_report
 from .spline import TimingSpline

@@ -195,6 +195,14 @@ def detect_contacts(motion, body, h_on=0.03, h_off=0.05, v_on=1.0, v_off=2.0, mi
     return out
 
 
+def foot_contacts(motion) -> np.ndarray:
+    """Contact states (F, 4) of the motion as it is, with the default body's soles: what the demo
+    and the benchmarks call a flight (:func:`retime.phases.flights`)."""
+    from .body import default_body
+
+    return detect_contacts(motion, default_body(motion.skeleton, motion=motion))
+
+
 def read_contacts(path, n_frames: int) -> np.ndarray:
     """Contact states (n_frames, 4) from a contact CSV file (format in the module docstring)."""
     path = Path(path)

@@ -121,19 +121,6 @@ def _basis_at(sp, tau):
     return Nb, dN
 
 
-def check_keytimes(keytimes, S, T=None):
-    kt = sorted((float(s), float(t)) for s, t in keytimes)
-    for s, t in kt:
-        if not (0.0 < s < S):
-            raise RetimeError(f"keytime source time {s:g} s is outside the motion (0, {S:g}) s")
-        if t <= 0.0 or (T is not None and t >= T):
-            raise RetimeError(f"keytime output time {t:g} s is outside the output (0, {T if T else 'end'}) s")
-    for (s0, t0), (s1, t1) in zip(kt, kt[1:]):
-        if not (s1 > s0 and t1 > t0):
-            raise RetimeError(f"keytimes {s0:g}={t0:g} and {s1:g}={t1:g} are out of order: timing must not run backwards")
-    return kt
-
-
 # ------------------------------------------------------------------------------------------------
 # Solvers
 # ------------------------------------------------------------------------------------------------
@@ -466,15 +453,6 @@ class RetimingSession:
             if 0 < j < len(new_c) - 1:
                 sp.locks[j] = float(v)
         self._rebake_spline()
-
-    def add_keytime(self, source_time, output_time):
-        T = self.spline.fixed_T
-        self.problem.keytimes = check_keytimes(self.problem.keytimes + [(source_time, output_time)], self.spline.S, T)
-
-    def remove_keytime(self, i):
-        kt = list(self.problem.keytimes)
-        kt.pop(i)
-        self.problem.keytimes = kt
 
     def _rebake_spline(self):
         self.problem.spline.w = np.clip(self.problem.spline.w, self.problem.w_min, self.problem.w_max)

@@ -17,50 +17,34 @@ import json
 import numpy as np
 
 from ..io_util import atomic_write
+from ..phases import contact_phases
+from .feasibility import IN_REGION_TOL, spline_feasibility
 from .forces import FanModel
 from .objective import actuated_mask
-from .regions import residual_at
-
-IN_REGION_TOL = 1e-2  # body weights of residual wrench beyond the region (about 7 N for 70 kg)
-
-
-def _phases(contact_any, times):
-    """Runs of equal contact state: [(in_contact, first, last)] over sample indices."""
-    runs = []
-    start = 0
-    for i in range(1, len(contact_any) + 1):
-        if i == len(contact_any) or contact_any[i] != contact_any[start]:
-            runs.append((bool(contact_any[start]), start, i - 1))
-            start = i
-    return runs
 
 
 def build_report(spline, pd, regions, fps, tol=IN_REGION_TOL, info=None, extra=None) -> dict:
     T = spline.duration
-    n_out = int(round(T * fps)) + 1
+    feas = spline_feasibility(spline, pd, regions, fps, tol)
+    n_out = len(feas.frames)
     t = np.minimum(np.arange(n_out) / fps, T)
     s = spline(t)
     pdot = spline.speed(t)
     pddot = spline.accel(t)
     times = np.asarray(pd.times, dtype=float)
-    idx = np.clip(np.rint(np.interp(s, times, np.arange(len(times)))).astype(int), 0, len(times) - 1)
     act = actuated_mask(pd)
     contact = np.asarray(pd.contact, dtype=bool)
     names = list(getattr(pd, "contact_names", [])) or [f"contact{k}" for k in range(contact.shape[1])]
     frames = []
-    inside = np.zeros(n_out, dtype=bool)
+    inside = feas.inside
     fans = {}
-    dist = regions.distances(idx, pddot, pdot ** 2)
     for k in range(n_out):
-        i = int(idx[k])
+        i = int(feas.frames[k])
         u, v = float(pddot[k]), float(pdot[k] ** 2)
-        d = float(dist[k])
         if i not in fans:
             fans[i] = FanModel(regions.polygon(i), regions.polygon_lam(i), regions.center[i], regions.center_lam[i])
         lam = fans[i].lam((u, v))
         tau = pd.a[i] * u + pd.b[i] * v + pd.c[i] - pd.N[i] @ lam
-        res = 0.0 if d <= 1e-9 else residual_at(pd, regions, i, u, v)
-        inside[k] = res <= tol
         frames.append({
             "frame": k,
             "output_time": round(float(t[k]), 6),
@@ -71,24 +55,13 @@ def build_report(spline, pd, regions, fps, tol=IN_REGION_TOL, info=None, extra=N
             "p_dot2": round(v, 6),
             "contact": [nm for nm, c in zip(names, contact[i]) if c],
             "in_region": bool(inside[k]),
-            "distance": round(float(d), 6),
-            "residual": round(float(res), 5),
+            "distance": round(float(feas.distance[k]), 6),
+            "residual": round(float(feas.residual[k]), 5),
             "torque_norm": round(float(np.linalg.norm(tau[act])), 3),
             "relaxation": round(float(regions.relaxation[i]), 4),
             "source_residual": round(float(regions.source_residual[i]), 4),
         })
-    phases = []
-    for in_contact, a, b in _phases(contact.any(axis=1), times):
-        s0, s1 = times[a], times[min(b + 1, len(times) - 1)]
-        t0, t1 = spline.inverse(np.array([s0, s1]))
-        if s1 <= s0 or t1 <= t0:  # a one-sample phase at the clip's end has no span to play
-            continue
-        phases.append({
-            "state": "stance" if in_contact else "flight",
-            "source_start": round(float(s0), 6), "source_end": round(float(s1), 6),
-            "output_start": round(float(t0), 6), "output_end": round(float(t1), 6),
-            "speed": round(float((s1 - s0) / (t1 - t0)), 4),
-        })
+    phases = contact_phases(contact, times, spline.inverse)
     summary = {
         "feasible_fraction": round(float(inside.mean()), 4),
         "in_region_tolerance": tol,

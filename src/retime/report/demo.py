@@ -1,24 +1,23 @@
 """``retime demo``: linear, guided and physics retiming of a bundled CMU jump to the same shorter
 duration, written as an HTML report with plots, a side-by-side video and the numbers.
 
-Everything the report shows is computed here from the clip: nothing is canned.  A method whose
-module is not importable (or fails) is listed in the report with the reason instead of its results.
+Everything the report shows is computed here from the clip: nothing is canned. Each method runs
+through the contract of :mod:`retime.method`; one that refuses the clip (a ``RetimeError``, e.g.
+physics on a four-legged rig) is listed in the report with its reason instead of results.
 """
 
 from __future__ import annotations
 
-import inspect
 import os
-import sys
 import time
-import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from retime.errors import RetimeError
+from retime.phases import interval_speed, longest_flight
 
 DEFAULT_CLIP = "16_06.amc"
 METHODS = ("linear", "guided", "physics")
@@ -79,159 +78,46 @@ def find_clip(name: str = DEFAULT_CLIP) -> Path:
     raise RetimeError(f"{name}: clip not found (neither bundled with retime nor an existing file)")
 
 
-def foot_contacts(motion) -> np.ndarray:
-    """(F, n) contact states of the feet: the physics module's detector when it is available,
-    else a plain height test on the foot and toe joints (within 4 cm of the clip's lowest point)."""
-    try:
-        from retime.physics.body import default_body
-        from retime.physics.contacts import detect_contacts
-
-        return np.asarray(detect_contacts(motion, default_body(motion.skeleton, motion=motion)), dtype=bool)
-    except Exception:  # noqa: BLE001 - the physics module is optional for this measurement
-        from retime.motion import forward_kinematics
-
-        pos, _ = forward_kinematics(motion)
-        pos = pos * motion.skeleton.meters_per_unit
-        feet = [j for j, n in enumerate(motion.skeleton.names) if any(k in n.lower() for k in ("foot", "toe", "ankle"))]
-        if not feet:
-            raise RetimeError("cannot find the feet of this skeleton")
-        h = pos[:, feet, 1]
-        floor = np.percentile(h.min(axis=1), 2)
-        return h < floor + 0.04
-
-
 def flight_phase(motion) -> tuple[float, float] | None:
     """(start, end) source times of the longest stretch with no foot on the ground, or None."""
-    contact = foot_contacts(motion).any(axis=1)
-    air = ~contact
-    best = None
-    i, n = 0, len(air)
-    while i < n:
-        if air[i]:
-            j = i
-            while j < n and air[j]:
-                j += 1
-            if best is None or j - i > best[1] - best[0]:
-                best = (i, j)
-            i = j
-        else:
-            i += 1
-    if best is None or best[1] - best[0] < 3:
-        return None
-    return best[0] / motion.fps, (best[1] - 1) / motion.fps
+    from retime.physics.contacts import foot_contacts
+
+    return longest_flight(foot_contacts(motion), motion.fps)
 
 
 def flight_speed(curve, flight: tuple[float, float] | None) -> float | None:
     """Mean playback speed over the flight: source flight time / output time spent in it."""
-    if flight is None or curve is None:
-        return None
-    s0, s1 = flight
-    t0, t1 = (float(v) for v in curve.inverse(np.array([s0, s1])))
-    if t1 <= t0:
-        return float("inf")
-    return (s1 - s0) / (t1 - t0)
-
-
-def feasible_fraction(curve, physics, fps: float) -> float | None:
-    """Share of output frames whose timing (p'', p'^2) lies in the physics feasible region of the
-    source frame they show: the physics report's test, applied to any timing curve, with p' and p''
-    taken from the curve by finite differences (independently of the physics spline)."""
-    if curve is None or physics is None:
-        return None
-    from retime.physics.regions import polygon_distance, residual_at
-    from retime.physics.report import IN_REGION_TOL
-
-    regions = physics.regions
-    times = np.asarray(regions.times, dtype=np.float64)
-    t = curve.frame_times(fps)
-    s = curve(t)
-    v = np.asarray(curve.speed(t), dtype=np.float64) ** 2
-    h = 0.25 / fps  # p'' by central differences of the speed (one-sided at the ends)
-    tp = np.minimum(t + h, curve.duration)
-    tm = np.maximum(t - h, 0.0)
-    u = (np.asarray(curve.speed(tp)) - np.asarray(curve.speed(tm))) / np.maximum(tp - tm, 1e-12)
-    idx = np.clip(np.rint(np.interp(s, times, np.arange(len(times)))).astype(int), 0, len(times) - 1)
-    # In the region when the residual root wrench the timing needs beyond it is at most the report's
-    # tolerance (a share of body weight), as in retime.physics.report.
-    inside = [polygon_distance(regions.polygon(int(i)), (float(a), float(b))) <= 1e-9
-              or residual_at(physics.dynamics, regions, int(i), float(a), float(b)) <= IN_REGION_TOL
-              for i, a, b in zip(idx, u, v)]
-    return float(np.mean(inside))
+    return None if flight is None or curve is None else interval_speed(curve, *flight)
 
 
 # ---------------------------------------------------------------------- the methods
-def _call(fn: Callable, motion, duration: float, **extra):
-    """Call a method's entry point with the arguments it accepts."""
-    params = inspect.signature(fn).parameters
-    kwargs = {k: v for k, v in extra.items() if k in params}
-    if "duration" in params:
-        kwargs["duration"] = duration
-    return fn(motion, **kwargs)
+SETTINGS = {
+    "linear": "uniform speed-up: p(t) = t * S / T",
+    "guided": "reference = the input itself (preserve its natural timing), default skip limit and k",
+    "physics": "objective: match the original's torques and stay feasible (Eq. 14)",
+}
 
 
-def run_linear(motion, duration: float) -> MethodResult:
-    from retime.warp import uniform_warp
+def run_method(name: str, motion, duration: float) -> MethodResult:
+    """One method through the contract of :mod:`retime.method`, to ``duration`` (progress on stderr)."""
+    from retime.method import Request, settings_type, solve
 
-    start = time.perf_counter()
-    curve = uniform_warp(motion.duration, duration)
-    return MethodResult("linear", curve=curve, seconds=time.perf_counter() - start,
-                        settings="uniform speed-up: p(t) = t * S / T")
+    settings = settings_type(name)()
+    if hasattr(settings, "progress"):
+        from dataclasses import replace
 
-
-def run_guided(motion, duration: float) -> MethodResult:
-    try:
-        from retime.guided import guided_warp
-    except ImportError as exc:
-        return MethodResult("guided", error=f"not available in this installation (retime.guided.guided_warp: {exc.__class__.__name__})")
-    from retime.jit import compile_watch
-
-    start = time.perf_counter()
-    with compile_watch(sys.stderr) as jit:
-        out = _call(guided_warp, motion, duration, quiet=True)
-    seconds = time.perf_counter() - start - jit.seconds  # the method's time; compiling is the first run's
-    curve = out[0] if isinstance(out, tuple) else getattr(out, "curve", out)
-    return MethodResult("guided", curve=curve, seconds=seconds,
-                        settings="reference = the input itself (preserve its natural timing), default skip limit and k")
-
-
-def run_physics(motion, duration: float) -> MethodResult:
-    try:
-        try:
-            from retime.physics import physics_warp
-        except ImportError:
-            from retime.physics.api import physics_warp
-    except ImportError as exc:
-        return MethodResult("physics", error=f"not available in this installation (retime.physics.physics_warp: {exc.__class__.__name__})")
-    from retime.jit import compile_watch
-
-    start = time.perf_counter()
-    with compile_watch(sys.stderr) as jit:
-        out = _call(physics_warp, motion, duration, quiet=True, objective="match")
-    seconds = time.perf_counter() - start - jit.seconds  # the method's time; compiling is the first run's
-    raw = out
-    report = None
-    if isinstance(out, tuple):
-        curve = out[0]
-        report = out[1] if len(out) > 1 else None
-    else:
-        curve = getattr(out, "curve", out)
-        report = getattr(out, "report", None)
-    if report is not None and not isinstance(report, dict):
-        report = report.to_dict() if hasattr(report, "to_dict") else None
-    result = MethodResult("physics", curve=curve, seconds=seconds,
-                          settings="objective: match the original's torques and stay feasible (Eq. 14)")
-    if report is not None:
+        settings = replace(settings, progress=True)  # the compile notice: a first run is slow
+    result = solve(name, motion, Request(duration=duration, settings=settings))
+    timings = result.report.summary["timings"]
+    out = MethodResult(name, curve=result.curve, seconds=timings.get("method"), settings=SETTINGS.get(name, ""))
+    if name == "physics":
         from retime.viz.regions import normalise_report
 
-        result.raw_report = report
-        result.report = normalise_report(report)
-        ff = result.report.get("feasible_fraction")
-        result.feasible_fraction = None if ff is None else float(ff)
-        result.physics = raw
-    return result
-
-
-RUNNERS = {"linear": run_linear, "guided": run_guided, "physics": run_physics}
+        out.raw_report = result.report.to_json()
+        out.report = normalise_report(out.raw_report)
+        out.feasible_fraction = float(result.report.summary["feasible_fraction"])
+        out.physics = result.detail
+    return out
 
 
 # ---------------------------------------------------------------------- the demo
@@ -258,7 +144,7 @@ def run_demo(
     t_start = time.perf_counter()
     if not (0 < scale < 10):
         raise RetimeError(f"--scale must be between 0 and 10, got {scale}")
-    unknown = [m for m in methods if m not in RUNNERS]
+    unknown = [m for m in methods if m not in METHODS]
     if unknown:
         raise RetimeError(f"unknown method {unknown[0]!r}; choose from {', '.join(METHODS)}")
     out = Path(out_dir)
@@ -286,11 +172,9 @@ def run_demo(
         for name in methods:
             bar.set_postfix_str(name)
             try:
-                r = RUNNERS[name](motion, duration)
-            except Exception as exc:  # noqa: BLE001 - shown in the report, the demo goes on
-                r = MethodResult(name, error=f"{type(exc).__name__}: {exc}")
-                if os.environ.get("RETIME_DEBUG"):
-                    traceback.print_exc()
+                r = run_method(name, motion, duration)
+            except RetimeError as exc:  # a method that refuses this clip: the report says why, the others go on
+                r = MethodResult(name, error=str(exc))
             if r.curve is not None:
                 r.motion = apply_timing(motion, r.curve)
                 r.flight_speed = flight_speed(r.curve, flight)
@@ -302,9 +186,7 @@ def run_demo(
                 save_bvh(r.motion, bvh)
                 r.files = {"warp": warp.name, "bvh": bvh.name}
                 if r.report is not None:
-                    import json
-
-                    from retime.io_util import atomic_write
+                    from retime.physics.report import write_report as write_physics_report
 
                     rep = out / f"{stem}_{name}_report.json"
                     data = dict(r.raw_report if r.raw_report is not None else r.report)
@@ -313,8 +195,7 @@ def run_demo(
                         # the polygons per source frame, so that `retime plot --regions` can draw any frame
                         data["regions"] = [np.round(np.asarray(regions.polygon(i), dtype=float), 6).tolist()
                                            for i in range(regions.n_frames)]
-                    with atomic_write(rep, "w") as f:
-                        json.dump(_jsonable(data), f, indent=1)
+                    write_physics_report(data, rep)
                     r.files["report"] = rep.name
             results.append(r)
             bar.update(1)
@@ -323,11 +204,10 @@ def run_demo(
         phys_result = next((r.physics for r in done if r.physics is not None), None)
         for r in done:
             if r.feasible_fraction is None and phys_result is not None:
-                try:
-                    r.feasible_fraction = feasible_fraction(r.curve, phys_result, motion.fps)
-                except Exception:  # noqa: BLE001 - a number the report can do without
-                    if os.environ.get("RETIME_DEBUG"):
-                        traceback.print_exc()
+                from retime.physics.feasibility import curve_feasibility
+
+                r.feasible_fraction = curve_feasibility(r.curve, phys_result.dynamics, phys_result.regions,
+                                                        motion.fps).fraction
         files: dict[str, str] = {}
         bar.set_postfix_str("plots")
         if done:
@@ -338,18 +218,13 @@ def run_demo(
             files["timing_svg"] = "timing.svg"
         phys = next((r for r in done if r.report is not None), None)
         if phys is not None:
-            from retime.viz.regions import pick_frame, plot_contact_strip, plot_regions
+            from retime.viz.regions import plot_contact_strip, plot_regions
 
             frame = _region_frame(phys.report, motion.fps)
             if phys.physics is not None and frame is not None:
                 from retime.viz.regions import physics_frame_region
 
-                try:
-                    physics_frame_region(phys.physics, phys.report, frame)
-                except Exception as exc:  # noqa: BLE001 - the plot then shows what the report has
-                    if os.environ.get("RETIME_DEBUG"):
-                        traceback.print_exc()
-                    files["region_note"] = f"objective map unavailable: {exc}"
+                physics_frame_region(phys.physics, phys.report, frame)
             if frame is not None and phys.report["frames"][frame]["region"] is not None:
                 plot_regions(phys.report, frame, out / "region.png",
                              title=f"{stem}, physics retiming: output frame {frame}")
@@ -428,15 +303,3 @@ def _region_frame(report: dict, fps: float) -> int | None:
     if all(s is not None for s in src) and min(src) <= 143 <= max(src):
         return int(np.argmin([abs(s - 143) for s in src]))
     return len(frames) // 2
-
-
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, (np.floating, np.integer, np.bool_)):
-        return obj.item()
-    return obj

@@ -198,8 +198,6 @@ def write_report(result, scale: float, video_fps: float) -> None:
                 "timing, over the magnitude of the objective (Eq. 14: squared distance to the region plus "
                 "the torque term; McCann et al., Fig. 4 and 6). Below: per output frame, which heel and toe "
                 "touch the ground and whether the chosen timing lies in its region.</p>")
-            if files.get("region_note"):
-                add(f'<p class="note">{_e(files["region_note"])}</p>')
         add("</section>")
 
     add("<footer>")
