@@ -28,8 +28,26 @@ def test_points_are_the_spline_and_the_curve_passes_through_them(session):
     pts = session.points
     assert len(pts) > 8 and pts[0].t == 0 and pts[-1].s == pytest.approx(session.source_duration)
     assert np.all(np.diff([p.t for p in pts]) > 0) and np.all(np.diff([p.s for p in pts]) > 0)
+
+
+
+def test_strip_agrees_with_the_curve_tested_as_any_curve(session):
+    """The strip's feasible frames (shade 1) are the physics spline's frames in their region; the same
+    test on the curve alone (p', p'' by differences of its samples, as the demo tests any curve)
+    agrees on nearly every frame, and the fraction shown is the strip's."""
+    from retime.physics.feasibility import curve_feasibility
+
+    sol = session.solution
     feas = np.asarray(sol.feasibility)
-    assert feas.shape == (sol.curve.n_frames(session.fps),) and np.all((feas >= 0) & (feas <= 1))
+    assert feas.shape == (sol.curve.n_frames(session.fps),)
+    assert sol.info["feasible_fraction"] == pytest.approx(np.mean(feas == 1.0), abs=1e-4)
+    _, pd, regions, _ = session.adapter("physics").prepared
+    other = curve_feasibility(sol.curve, pd, regions, session.fps)
+    assert np.mean(other.inside == (feas == 1.0)) >= 0.95
+    # outside the region the shade falls with the residual
+    out = ~other.inside & (feas < 1.0)
+    order = np.argsort(other.residual[out])
+    assert np.all(np.diff(feas[out][order]) <= 0.05)
 
 
 def test_hold_lock_release(session):

@@ -82,8 +82,61 @@ def test_report_has_a_row_per_output_frame(jump):
     assert keys <= set(frames[0])
     frac = np.mean([f["in_region"] for f in frames])
     assert r.report["summary"]["feasible_fraction"] == pytest.approx(frac, abs=1e-4)
-    assert all(f["distance"] == 0 or not f["in_region"] or f["residual"] <= 0.01 for f in frames)
     assert all(f["torque_norm"] > 0 for f in frames)
+
+
+def _residual_by_linprog(pd, regions, i, u, v):
+    """The residual of a timing (u, v) at source frame i, from the model's rows by SciPy's linprog:
+    the least weighted L1 slack s+ + s- with lo <= a u + b v + c - N lam + s+ - s- <= hi, lam >= 0."""
+    from scipy.optimize import linprog
+
+    a, b, c, N = (np.asarray(x[i], dtype=float) for x in (pd.a, pd.b, pd.c, pd.N))
+    lo = regions.lo[i] - regions.budget[i] * v
+    hi = regions.hi[i] + regions.budget[i] * v
+    nv, K = N.shape
+    n_root = int(np.sum(np.cumprod((np.asarray(pd.tau_lo) == 0) & (np.asarray(pd.tau_hi) == 0))))
+    bw, opts = regions.body_weight, regions.options
+    cost = np.full(nv, 1.0 / (bw * opts.moment_arm))
+    cost[: min(3, n_root)] = 1.0 / bw
+    cost[n_root:] *= opts.actuated_slack_cost
+    value = a * u + b * v + c
+    finite_lo, finite_hi = lo > -1e29, hi < 1e29
+    # rows: value - N lam + s+ - s- <= hi  and  -(value - N lam + s+ - s-) <= -lo
+    I = np.eye(nv)
+    A = np.vstack([np.hstack([-N, I, -I])[finite_hi], np.hstack([N, -I, I])[finite_lo]])
+    rhs = np.concatenate([(hi - value)[finite_hi], (value - lo)[finite_lo]])
+    res = linprog(np.concatenate([np.zeros(K), cost, cost]), A_ub=A, b_ub=rhs, bounds=(0, None), method="highs-ds")
+    assert res.status == 0
+    return res.fun
+
+
+def _inside_convex(P, point):
+    """A point in a convex polygon (either orientation): on one side of every edge."""
+    P = np.asarray(P, dtype=float)
+    d = np.roll(P, -1, axis=0) - P
+    w = np.asarray(point) - P
+    cross = d[:, 0] * w[:, 1] - d[:, 1] * w[:, 0]
+    return bool(np.all(cross >= -1e-9) or np.all(cross <= 1e-9))
+
+
+def test_in_region_agrees_with_an_independent_lp(jump):
+    """The report's in_region against the residual found by SciPy's linprog from the model's rows, and
+    its distance against a plain point-in-polygon test (neither shares code with the report)."""
+    m, terms = jump
+    r = physics_warp(m, scale=0.3, terms=terms)  # shorter than any physical timing: some frames outside
+    frames, regions, pd = r.report["frames"], r.regions, r.dynamics
+    assert any(not f["in_region"] for f in frames) and any(f["in_region"] for f in frames)
+    checked = 0
+    for f in frames[::3]:
+        i, u, v = f["source_frame"], f["p_ddot"], f["p_dot2"]
+        if f["distance"] == 0:
+            assert _inside_convex(regions.polygon(i), (u, v))
+            continue
+        want = _residual_by_linprog(pd, regions, i, u, v)
+        assert f["residual"] == pytest.approx(want, rel=1e-3, abs=2e-5)
+        assert f["in_region"] == (want <= 0.01 + 1e-6)
+        checked += 1
+    assert checked >= 5
 
 
 def test_cli_writes_motion_warp_report_and_body(tmp_path):
