@@ -81,7 +81,7 @@ def _terms_fn(case):
 
         m = load_motion(bundled_path("16_16.amc"))
         return (lambda: dynamics_terms(m, smoothing=DEFAULT_SMOOTHING)), m.n_frames
-    from retime.physics.chain import CASES, chain_path, chain_terms
+    from chain import CASES, chain_path, chain_terms
 
     n = CASES[case]
     quats = chain_path(n, 100, 30.0)

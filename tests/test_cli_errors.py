@@ -65,7 +65,7 @@ def test_truncated_bvh_data(capsys, clip):
     path = clip / "16_15.bvh"
     lines = lines_of(path)
     write_lines(path, lines[:-100])
-    err = fails_cleanly(capsys, linear(path, clip / "o.bvh"), path, "371 of 471 frames", "truncated",
+    fails_cleanly(capsys, linear(path, clip / "o.bvh"), path, "371 of 471 frames", "truncated",
                         out=clip / "o.bvh", line=len(lines) - 100)
 
 

@@ -23,11 +23,6 @@ def angle_between(a, b):
     return (Rotation.from_quat(a.reshape(-1, 4)).inv() * Rotation.from_quat(b.reshape(-1, 4))).magnitude().max()
 
 
-@pytest.fixture(scope="module")
-def jump():
-    return load_motion(bundled_path("16_06.amc"))
-
-
 def test_info(capsys):
     rc, out, err = run(capsys, "info", bundled_path("16_06.amc"))
     assert rc == 0 and err == ""

@@ -14,16 +14,6 @@ from retime.motion import load_motion
 from retime.warp import apply_timing
 
 
-@pytest.fixture(scope="module")
-def jump():
-    return load_motion(bundled_path("16_06.amc"))
-
-
-@pytest.fixture(scope="module")
-def high_jump():
-    return load_motion(bundled_path("16_03.amc"))
-
-
 def test_identity_when_duration_and_reference_unchanged(jump):
     res = guided_solve(jump)
     assert res.m == res.n

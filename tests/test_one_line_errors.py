@@ -4,12 +4,11 @@ from __future__ import annotations
 import json
 import shutil
 
-import numpy as np
 import pytest
 
 from test_cli_errors import fails_cleanly
 from retime.data import bundled_path
-from retime.motion import load_motion, save_bvh
+from retime.motion import load_motion
 
 CLIP = bundled_path("16_33.amc")
 

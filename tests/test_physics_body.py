@@ -9,11 +9,6 @@ from retime.physics.body import (DE_LEVA, STRENGTH, default_body, find_feet, rea
 from retime.physics.dynamics import dynamics_terms
 
 
-@pytest.fixture(scope="module")
-def jump():
-    return load_motion(bundled_path("16_06.amc"))
-
-
 def test_de_leva_segments_on_cmu(jump):
     body = default_body(jump.skeleton, motion=jump)
     assert body.total_mass == pytest.approx(70.0)

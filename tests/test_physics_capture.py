@@ -3,18 +3,10 @@ of the regions, PathDynamics.b_noise) and an exporter's leading bind pose."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
-from retime.data import bundled_path
-from retime.motion import load_motion
 from retime.motion.quat import slerp
 from retime.physics import regions as R
 from retime.physics.dynamics import NOISE_CAP, bind_pose_frames, dynamics_terms
-
-
-@pytest.fixture(scope="module")
-def jump():
-    return load_motion(bundled_path("16_06.amc"))
 
 
 def test_noise_band_is_the_local_rms_of_the_difference_of_two_low_passes(jump):

@@ -17,11 +17,6 @@ def runs(state):
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1) - 1))
 
 
-@pytest.fixture(scope="module")
-def jump():
-    return load_motion(bundled_path("16_06.amc"))
-
-
 def test_jump_flight_has_no_contact(jump):
     body = default_body(jump.skeleton, motion=jump)
     c = detect_contacts(jump, body)

@@ -12,7 +12,6 @@ sys.path.insert(0, os.path.dirname(__file__))
 import physics_synth as ps  # noqa: E402
 
 from retime.physics import objective as O  # noqa: E402
-from retime.physics import regions as R  # noqa: E402
 from retime.physics.globalstart import _shortest, global_start, speed_levels  # noqa: E402
 
 G = 9.81

@@ -11,8 +11,6 @@ import pytest
 sys.path.insert(0, os.path.dirname(__file__))
 import physics_synth as ps  # noqa: E402
 
-from retime.physics import objective as O  # noqa: E402
-from retime.physics import regions as R  # noqa: E402
 from retime.physics.api import make_problem  # noqa: E402
 from retime.physics.optimize import RetimingSession, solve  # noqa: E402
 from retime.physics.spline import TimingSpline  # noqa: E402

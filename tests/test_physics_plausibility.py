@@ -11,11 +11,6 @@ from retime.motion.conform import conform
 
 
 @pytest.fixture(scope="module")
-def walk():
-    return load_motion(bundled_path("16_15.amc"))  # CMU walk
-
-
-@pytest.fixture(scope="module")
 def jump():
     return load_motion(bundled_path("16_06.amc"))
 

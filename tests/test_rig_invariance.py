@@ -14,7 +14,7 @@ from retime.motion import Motion, Skeleton, load_motion, save_bvh
 from retime.motion import variants as V
 from retime.motion.conform import conform
 from retime.motion.frame import UNITS
-from retime.motion.rig import limbs_by_name, part_of, side_and_part
+from retime.motion.rig import part_of, side_and_part
 from retime.physics.api import physics_warp
 from retime.warp import scale_warp
 

@@ -17,7 +17,7 @@ from retime.viz.render import (
     render_video,
     track_from_motion,
 )
-from retime.viz.synthetic import synthetic_figure
+from synthetic_figure import synthetic_figure
 
 
 def _decode(path):

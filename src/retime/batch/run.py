@@ -7,9 +7,7 @@ import contextlib
 import io
 import logging
 import os
-import signal
 import sys
-import threading
 import time
 from pathlib import Path
 

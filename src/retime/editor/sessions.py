@@ -190,7 +190,6 @@ class Session:
     def _move(self, points, i, t, s, scale_inner=False):
         """Move point i, clamped so that the curve stays monotone (the ends keep their source time)."""
         gap, n = self._gap(), len(points)
-        S = self.source_duration
         if i == 0:
             return  # (0, 0) is fixed
         if i == n - 1:

@@ -31,38 +31,3 @@ def compiled(dispatcher, signature):
                 numba.config.SLP_VECTORIZE = prev
             _done.add(key)
     return dispatcher
-
-
-_blas_libs = None
-
-
-def _blas_controllers():
-    global _blas_libs
-    if _blas_libs is None:
-        try:
-            from threadpoolctl import ThreadpoolController
-
-            _blas_libs = [c for c in ThreadpoolController().lib_controllers if c.user_api == "blas"]
-        except Exception:  # threadpoolctl missing or unable to inspect: leave BLAS alone
-            _blas_libs = []
-    return _blas_libs
-
-
-class single_threaded_blas:
-    """Context manager: BLAS on one thread inside.
-
-    OpenBLAS worker threads spin for a long time after each call; on a 2-core machine they then
-    compete with the numba kernels that run right after a matrix product and halve their speed.
-    The products here are small enough that one thread is as fast.
-    """
-
-    def __enter__(self):
-        self._saved = [(c, c.num_threads) for c in _blas_controllers()]
-        for c, _ in self._saved:
-            c.set_num_threads(1)
-        return self
-
-    def __exit__(self, *exc):
-        for c, nt in self._saved:
-            c.set_num_threads(nt)
-        return False

@@ -29,7 +29,6 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from retime.errors import RetimeError
-from retime.guided import dp
 from retime.guided.features import FeatureWeights, compact_columns, lowpass, positions_in_root_frame
 from retime.guided.heuristic import solve_heuristic, solve_upper_bound
 from retime.guided.postprocess import moving_average

@@ -311,7 +311,6 @@ def solve_fixed(F, m, fixed=None, band=None, parallel=None) -> Solution:
     offs = np.zeros(m + 1, dtype=np.int64)
     offs[2:] = np.cumsum(widths[:-1] * S8)
     bp = np.zeros(int(offs[-1]), dtype=np.uint8)
-    work = int(widths.sum()) * s * s
     if parallel is None:
         # one barrier per output frame: on a busy 2-core machine a descheduled thread stalls every
         # step, so the search runs on one thread unless asked otherwise
@@ -655,7 +654,7 @@ def prune_band(F, m, band: Band, upper_bound: float, spread=PRICE_SPREAD, hist=N
     still exact.
     """
     F = np.ascontiguousarray(F, dtype=np.float64)
-    n, s = F.shape[0], F.shape[1]
+    s = F.shape[1]
     hist = lagrange_multipliers(F, m) if hist is None else hist
     if not hist:
         return band

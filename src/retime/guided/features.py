@@ -112,21 +112,6 @@ def positions_in_root_frame(positions: np.ndarray, root_position: np.ndarray, ro
     return np.einsum("fab,fjb->fja", inv, rel)
 
 
-def pose_matrix(root_frame_positions: np.ndarray, meters_per_unit: float = 1.0) -> np.ndarray:
-    """Flatten (F, J, 3) root-frame positions to (F, 3 J) in metres, dropping constant columns.
-
-    Columns that never change (the root itself, which is always at the origin of its own
-    frame) carry no information and only cost time.
-    """
-    p = np.asarray(root_frame_positions, dtype=np.float64)
-    x = p.reshape(p.shape[0], -1) * float(meters_per_unit)
-    if x.shape[0] > 1:
-        keep = np.ptp(x, axis=0) > 1e-12
-        if keep.any():
-            x = x[:, keep]
-    return np.ascontiguousarray(x)
-
-
 def compact_columns(x: np.ndarray, z: np.ndarray | None = None):
     """Drop coordinates that are constant in both pose sets and merge identical ones.
 

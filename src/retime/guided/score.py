@@ -36,7 +36,8 @@ import numpy as np
 from numba import njit, prange
 
 from retime.errors import RetimeError
-from retime.guided._jit import compiled, single_threaded_blas
+from retime.blas import single_threaded_blas
+from retime.guided._jit import compiled
 from retime.guided.features import reference_features, triple_features
 
 INF = np.inf
@@ -459,5 +460,3 @@ def score_table_bruteforce(x, z, coeffs, s, k=3, ref_stride=1):
     return out
 
 
-def knn_threads() -> int:
-    return numba.get_num_threads()

@@ -87,10 +87,6 @@ def quat_to_euler(seq: str, q, degrees=False):
     return np.rad2deg(out) if degrees else out
 
 
-def qnormalize(q):
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
-
-
 def slerp(q0, q1, w):
     """Spherical linear interpolation, vectorized; w broadcasts against q0[..., 0].
 

@@ -26,7 +26,7 @@ Defaults, and why (measured on CMU jumps 16_06, 16_03, 13_11, 118_26; see the te
 * control points every ``knot_spacing`` = 0.05 s of source time; 4 objective samples per source frame.
 * ``smoothing = 0.05`` s: the path is low-passed (Gaussian) for the dynamics. The timing spline cannot
   follow anything faster, and twice-differentiated capture noise would otherwise decide how fast a
-  still stance may be played (:mod:`.dynamics` uses 0.025 s by default).
+  still stance may be played (:data:`.constants.DEFAULT_SMOOTHING`, used by :mod:`.dynamics` too).
 * the **capture-noise band** (:data:`.dynamics.NOISE_BAND` = 0.1 s, :data:`.dynamics.NOISE_CAP` = 2 %
   of body weight): in stance the root rows may also use the local RMS of b(0.05 s) - b(0.1 s) times
   p'^2, what the capture's accelerations are uncertain by (see :mod:`.regions`). Without it, the sway and marker
@@ -50,17 +50,17 @@ import numpy as np
 from ..errors import RetimeError
 from ..motion.frame import up_vector
 from ..warp import TimingCurve, snap_duration
+from .constants import DEFAULT_SMOOTHING, STANDARD_GRAVITY, G
 from .fastest import fastest_timing
 from .globalstart import global_start, soften
 from .objective import BakedObjective, bake, target_torques
 from .plausibility import check_source
 from ..warp import check_keytimes
-from .optimize import Problem, RetimingSession, SolveInfo, solve
+from .optimize import Problem, RetimingSession, SolveInfo
 from .regions import RegionOptions, RegionSet, compute_regions
 from .report import build_report
 from .spline import TimingSpline
 
-STANDARD_GRAVITY = (0.0, -9.81, 0.0)
 
 
 @dataclass
@@ -83,8 +83,6 @@ def _changed(gravity, mass_factors, friction, torque_scale):
             or float(torque_scale) != 1.0)
 
 
-DEFAULT_SMOOTHING = 0.05
-
 
 def prepare(motion, gravity=STANDARD_GRAVITY, mass_factors=None, objective="match", body=None, contacts=None,
             friction=None, torque_scale=1.0, alpha=10.0, beta=0.1, samples_per_frame=4, region_options=None,
@@ -105,7 +103,7 @@ def prepare(motion, gravity=STANDARD_GRAVITY, mass_factors=None, objective="matc
     timings["dynamics"] = time.perf_counter() - t0
     opts = region_options or RegionOptions()
     if opts.body_weight is None:
-        opts.body_weight = float(pd0.total_mass) * 9.81
+        opts.body_weight = float(pd0.total_mass) * G
     if opts.v_max < 64.0:
         opts.v_max = 64.0
     t0 = time.perf_counter()
@@ -229,7 +227,7 @@ def _physics_warp(motion, duration, gravity, mass_factors, objective, keytimes, 
     fps = float(motion.fps)
     S = motion.duration
     timings = {}
-    file_gravity = -9.81 * up_vector(motion.skeleton.up) if gravity is None else np.asarray(gravity, dtype=float)
+    file_gravity = -G * up_vector(motion.skeleton.up) if gravity is None else np.asarray(gravity, dtype=float)
     gravity = conformed_gravity(motion, gravity)
     terms, pd, regions, obj = prepare(motion, gravity, mass_factors, objective, body, contacts, friction, torque_scale,
                                       alpha, beta, samples_per_frame, region_options, terms, progress, timings,

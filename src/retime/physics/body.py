@@ -400,7 +400,7 @@ def default_body(skeleton, mass=None, feet_names=None, motion=None, frames=None)
 def world_frames(motion):
     """World joint positions (F, J, 3) in metres and rotation matrices (F, J, 3, 3) of a motion."""
     from ..motion import forward_kinematics
-    from .tree import quat_to_matrix
+    from ..motion.quat import quat_to_matrix
 
     pos, rot = forward_kinematics(motion)
     return pos * motion.skeleton.meters_per_unit, quat_to_matrix(rot)

@@ -21,9 +21,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .constants import G
 from .plausibility import OFF_RESIDUAL, SourceCheck, check_source, sole_point_velocity
 
-G = 9.81
 FLIGHT_G_TOL = 0.35  # real jumps, through the dynamics' 0.05 s low-pass: 0.85-1.05 g
 
 

@@ -41,7 +41,7 @@ import io
 from pathlib import Path
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 from scipy.ndimage import maximum_filter1d, minimum_filter1d, uniform_filter1d
 
 from ..errors import FormatError, RetimeError

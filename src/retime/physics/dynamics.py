@@ -43,18 +43,17 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 from scipy.ndimage import uniform_filter1d
 
 from ..errors import RetimeError
 from ..limits import check_memory
 from .body import Body, load_body, skeleton_tree
+from .constants import DEFAULT_SMOOTHING, STANDARD_GRAVITY, G
 from .contacts import CONTACT_POINTS, at_samples, contact_basis, corner_jacobians, corner_positions, load_contacts
 from .path import path_samples, sample_times
 from .tree import SPHERICAL, TreeModel, kinematics, project, wrenches
 
-STANDARD_GRAVITY = (0.0, -9.81, 0.0)
-DEFAULT_SMOOTHING = 0.025  # seconds
 NOISE_BAND = 0.1  # seconds: the wider low-pass whose difference bounds the capture's acceleration noise
 NOISE_CAP = 0.02  # body weights (per unit p'^2): the most of that difference taken as noise
 ROOT_WEIGHT = 100.0
@@ -186,7 +185,7 @@ class DynamicsTerms:
             # in flight only gravity acts and the parabola is known well: no noise budget there
             stance = np.asarray(self.contact, dtype=bool).any(axis=1)
             # capped: near a takeoff or landing the wider low-pass blurs real impacts, not noise
-            cap = NOISE_CAP * float(np.dot(f, self.tree.mass)) * 9.81
+            cap = NOISE_CAP * float(np.dot(f, self.tree.mass)) * G
             diff = np.minimum(np.abs(abc[:, 1, :nr] - b_wide[:, :nr]), cap)
             # a noise level is a local statistic: the RMS over +-NOISE_BAND (a single difference can
             # cross zero where the noise is large)
@@ -468,20 +467,3 @@ def path_dynamics(motion, body=None, gravity=STANDARD_GRAVITY, mass_factors=None
     """One-shot :func:`dynamics_terms` followed by :meth:`DynamicsTerms.combine`."""
     terms = dynamics_terms(motion, body, samples_per_frame=samples_per_frame, contacts=contacts, smoothing=smoothing)
     return terms.combine(gravity=gravity, mass_factors=mass_factors, friction=friction, torque_scale=torque_scale)
-
-
-def force_timing(motion, repeats=3, **kwargs) -> dict:
-    """Best-of-``repeats`` wall time per source frame (ms) of the Force phase (Fig. 12) for a motion
-    (and the process CPU time, ``force_cpu_ms``, which a busy machine disturbs less; it is one thread):
-    body model, path derivatives, kinematics, per-body wrenches, contacts and their Jacobians,
-    reference forces and torque limits (:func:`dynamics_terms`), then :meth:`DynamicsTerms.combine`."""
-    import time
-
-    dynamics_terms(motion.frames(slice(0, min(motion.n_frames, 8))), **kwargs).combine()  # load kernels
-    best, cpu = np.inf, np.inf
-    for _ in range(repeats):
-        t0, c0 = time.perf_counter(), time.process_time()
-        dynamics_terms(motion, **kwargs).combine()
-        best, cpu = min(best, time.perf_counter() - t0), min(cpu, time.process_time() - c0)
-    return {"frames": motion.n_frames, "force_ms": 1e3 * best / motion.n_frames,
-            "force_cpu_ms": 1e3 * cpu / motion.n_frames}

@@ -3,14 +3,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import numpy as np
 
 from ..errors import RetimeError
 from ..method import Report, Request, Result, settings_dict
 from ..warp import check_keytimes
+from .constants import G
 
 NAME = "physics"
-STANDARD_GRAVITY_MS2 = 9.81
 MAX_GRAVITY = 1000.0  # m/s^2: a hundred g
 MASS_FACTORS = (1e-3, 1e3)
 
@@ -44,12 +43,12 @@ def file_gravity(motion, settings: Settings):
         raise RetimeError("give a gravity vector or a gravity scale, not both")
     if settings.gravity_scale is not None:
         g = float(settings.gravity_scale)
-        if not (0 < g * STANDARD_GRAVITY_MS2 <= MAX_GRAVITY):
-            raise RetimeError(f"gravity scale must be above 0 and at most {MAX_GRAVITY / STANDARD_GRAVITY_MS2:.0f}, "
+        if not (0 < g * G <= MAX_GRAVITY):
+            raise RetimeError(f"gravity scale must be above 0 and at most {MAX_GRAVITY / G:.0f}, "
                               f"got {g:g}")
         from ..motion.frame import up_vector
 
-        return tuple(-STANDARD_GRAVITY_MS2 * g * up_vector(motion.skeleton.up))
+        return tuple(-G * g * up_vector(motion.skeleton.up))
     return settings.gravity
 
 

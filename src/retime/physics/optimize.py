@@ -35,6 +35,7 @@ import numpy as np
 from numba import njit
 from scipy.optimize import minimize
 
+from ..blas import single_threaded_blas
 from ..errors import RetimeError
 from .objective import BakedObjective, evaluate
 from .spline import TimingSpline
@@ -253,29 +254,8 @@ def _gd_inner(fun, w0, bounds, max_iter, tol):
 def solve(problem: Problem, w0=None, method="lbfgs", max_iter=500, tol=1e-9, eq_tol=1e-6,
           max_seconds=None) -> tuple[np.ndarray, SolveInfo]:
     """Minimize the objective from ``w0`` (default: the spline's current w)."""
-    with _single_threaded_blas():
+    with single_threaded_blas():  # the quasi-Newton updates are tiny dense products
         return _solve(problem, w0, method, max_iter, tol, eq_tol, max_seconds)
-
-
-def _single_threaded_blas():
-    """The quasi-Newton updates are tiny dense products: BLAS threads only add latency (much of it
-    on a busy machine)."""
-    global _CONTROLLER
-    import contextlib
-
-    if _CONTROLLER is None:
-        try:
-            from threadpoolctl import ThreadpoolController
-
-            _CONTROLLER = ThreadpoolController()
-        except Exception:  # optional dependency
-            _CONTROLLER = False
-    if _CONTROLLER is False:
-        return contextlib.nullcontext()
-    return _CONTROLLER.limit(limits=1, user_api="blas")
-
-
-_CONTROLLER = None
 
 
 def _solve(problem, w0, method, max_iter, tol, eq_tol, max_seconds):

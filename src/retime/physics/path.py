@@ -22,6 +22,7 @@ from numba import njit
 from scipy.ndimage import gaussian_filter1d
 
 from ..errors import RetimeError
+from ..motion.quat import continuous
 from .tree import FIXED, FREE
 
 
@@ -34,14 +35,6 @@ class PathSamples:
     quats: np.ndarray  # (n, nb, 4) local rotations (x, y, z, w), unit
     qd: np.ndarray  # (n, nv) dq/ds
     qdd: np.ndarray  # (n, nv) d2q/ds2
-
-
-def _continuous(q):
-    dots = np.sum(q[1:] * q[:-1], axis=-1)
-    flips = np.cumprod(np.where(dots < 0, -1.0, 1.0), axis=0)
-    out = q.copy()
-    out[1:] *= flips[..., None]
-    return out
 
 
 def _lowpass(x, sigma_frames):
@@ -199,7 +192,7 @@ def path_samples(fps, root_pos, quats, jtype, vidx, nv, times=None, smoothing=0.
         raise RetimeError(f"physics needs at least 4 frames, the motion has {F}")
     times = np.arange(F) / fps if times is None else np.asarray(times, dtype=float)
     root_pos = np.zeros((F, 3)) if root_pos is None else np.asarray(root_pos, dtype=float)
-    X = np.concatenate([root_pos, _continuous(quats).reshape(F, nb * 4)], axis=1)
+    X = np.concatenate([root_pos, continuous(quats).reshape(F, nb * 4)], axis=1)
     X = np.ascontiguousarray(_lowpass(X, smoothing * fps))
     h = 1.0 / fps
     M = _spline_moments(X, h)

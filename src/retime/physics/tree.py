@@ -29,7 +29,7 @@ al. 2006, sec. 3.1), so the kernels return, per sample and per *term*, the wrenc
 Generalized forces are linear in these wrenches and in each body's inertial parameters, so a mass
 factor per body and any gravity vector recombine them (:func:`project`) in a fraction of the time.
 The kernels also run chains of a thousand links, which Pinocchio's ``Data`` (nv^3-sized buffers)
-cannot allocate. :func:`to_pinocchio` builds the same model in Pinocchio; the tests check
+cannot allocate. ``tests/_pinocchio_ref.py`` builds the same model in Pinocchio; the tests check
 :func:`generalized_forces` against ``pinocchio.rnea`` and the contact map against Pinocchio's frame
 Jacobians.
 """
@@ -38,7 +38,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 FREE, SPHERICAL, FIXED = 0, 1, 2
 N_TERMS = 5  # a, b, gravity x, gravity y, gravity z
@@ -103,41 +103,12 @@ class TreeModel:
                 out += [f"{name}:{a}" for a in ("x", "y", "z")]
         return out
 
-    def dof_body(self) -> np.ndarray:
-        """(nv,) index of the body whose joint owns each velocity row."""
-        out = np.empty(self.nv, dtype=np.int64)
-        for j, t in enumerate(self.jtype):
-            if t != FIXED:
-                out[self.vidx[j]:self.vidx[j] + JOINT_DOFS[int(t)]] = j
-        return out
-
     def total_mass(self) -> float:
         return float(self.mass.sum())
 
 
-def quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices (..., 3, 3) of quaternions (..., 4) in (x, y, z, w) order (need not be unit)."""
-    q = np.asarray(q, dtype=float)
-    x, y, z, w = np.moveaxis(q, -1, 0)
-    s = 2.0 / np.sum(q * q, axis=-1)
-    xx, yy, zz = x * x * s, y * y * s, z * z * s
-    xy, xz, yz = x * y * s, x * z * s, y * z * s
-    wx, wy, wz = w * x * s, w * y * s, w * z * s
-    out = np.empty(q.shape[:-1] + (3, 3))
-    out[..., 0, 0] = 1 - yy - zz
-    out[..., 0, 1] = xy - wz
-    out[..., 0, 2] = xz + wy
-    out[..., 1, 0] = xy + wz
-    out[..., 1, 1] = 1 - xx - zz
-    out[..., 1, 2] = yz - wx
-    out[..., 2, 0] = xz - wy
-    out[..., 2, 1] = yz + wx
-    out[..., 2, 2] = 1 - xx - yy
-    return out
-
-
 # ---------------------------------------------------------------------------------------------
-# numba kernels (serial: on a busy 2-core machine numba's parallel launches cost more than they save)
+# numba kernels, one thread each (on a busy 2-core machine numba's parallel launches cost more than they save)
 
 @njit(cache=True)
 def _mv(R, v, out):
@@ -184,7 +155,7 @@ def _kinematics(parents, jtype, vidx, offsets, root_pos, quats, qd, qdd, R, o, w
     n = quats.shape[0]
     nb = parents.shape[0]
     Rl = np.empty((3, 3))
-    for i in prange(n):
+    for i in range(n):
         t1 = np.empty(3)
         t2 = np.empty(3)
         t3 = np.empty(3)
@@ -383,7 +354,7 @@ def _points_jt(parents, jtype, vidx, R, o, body, x, dirs, rowmap, out):
     n = x.shape[0]
     P = x.shape[1]
     E = dirs.shape[1]
-    for i in prange(n):
+    for i in range(n):
         arm = np.empty(3)
         mom = np.empty(3)
         for pt in range(P):
@@ -514,49 +485,3 @@ def generalized_forces(tree: TreeModel, root_pos, quats, qd, qdd, gravity=(0.0, 
     R, o, W = body_wrenches(tree, root_pos, quats, qd, qdd)
     total = W[:, 1] + np.einsum("ntbs,t->nbs", W[:, 2:], np.asarray(gravity, dtype=float))
     return project(tree, R, o, total[:, None])[:, 0]
-
-
-def to_pinocchio(tree: TreeModel, gravity=(0.0, -9.81, 0.0)):
-    """The same tree as a Pinocchio model (FIXED joints become spherical joints held still).
-
-    Returns (model, vmap): vmap[k] is Pinocchio's velocity index of our DOF k.
-    """
-    import pinocchio as pin
-
-    model = pin.Model()
-    model.gravity = pin.Motion(np.asarray(gravity, dtype=float), np.zeros(3))
-    ids, vmap = [], []
-    for j, (name, p, t) in enumerate(zip(tree.names, tree.parents, tree.jtype)):
-        parent_id = 0 if p < 0 else ids[p]
-        placement = pin.SE3(np.eye(3), np.zeros(3) if t == FREE else tree.offsets[j].copy())
-        joint = pin.JointModelFreeFlyer() if t == FREE else pin.JointModelSpherical()
-        jid = model.addJoint(parent_id, joint, placement, name)
-        model.appendBodyToJoint(jid, pin.Inertia(float(tree.mass[j]), tree.com[j].copy(), tree.inertia[j].copy()),
-                                pin.SE3.Identity())
-        ids.append(jid)
-        if t != FIXED:
-            start = model.joints[jid].idx_v
-            vmap += list(range(start, start + JOINT_DOFS[int(t)]))
-    return model, np.array(vmap, dtype=np.int64)
-
-
-def pinocchio_state(tree: TreeModel, model, root_pos, quats, qd, qdd):
-    """Pinocchio (q, v, a) of one sample: root_pos (3,), quats (nb, 4), qd/qdd (nv,)."""
-    q = np.zeros(model.nq)
-    v = np.zeros(model.nv)
-    a = np.zeros(model.nv)
-    for j, t in enumerate(tree.jtype):
-        jm = model.joints[j + 1]
-        quat = np.asarray(quats[j], dtype=float)
-        quat = quat / np.linalg.norm(quat)
-        if t == FREE:
-            q[jm.idx_q:jm.idx_q + 3] = root_pos
-            q[jm.idx_q + 3:jm.idx_q + 7] = quat
-        else:
-            q[jm.idx_q:jm.idx_q + 4] = quat
-        if t != FIXED:
-            k = tree.vidx[j]
-            dof = JOINT_DOFS[int(t)]
-            v[jm.idx_v:jm.idx_v + dof] = qd[k:k + dof]
-            a[jm.idx_v:jm.idx_v + dof] = qdd[k:k + dof]
-    return q, v, a

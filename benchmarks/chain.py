@@ -19,9 +19,9 @@ import time
 
 import numpy as np
 
-from .dynamics import DynamicsTerms, torque_limits
-from .path import path_samples, sample_times
-from .tree import SPHERICAL, TreeModel, kinematics, wrenches
+from retime.physics.dynamics import DynamicsTerms, torque_limits
+from retime.physics.path import path_samples, sample_times
+from retime.physics.tree import SPHERICAL, TreeModel, kinematics, wrenches
 
 CASES = {"C10": 10, "C100": 100, "C1000": 1000}
 
@@ -71,19 +71,3 @@ def chain_terms(n_links: int, n_frames=100, fps=30.0, samples_per_frame=1, smoot
         terms.lambda_ref = np.zeros((n, 0))
         terms.tau_limit = torque_limits(tree, None, terms.tau_ref)
     return terms
-
-
-def force_timing(n_links: int, n_frames=100, fps=30.0, repeats=3) -> dict:
-    """Best-of-``repeats`` wall time per frame (ms) of the Force phase for a chain: path derivatives,
-    kinematics, per-body wrenches and the projection to a, b, c at standard gravity (the synthetic
-    input motion is made before the clock starts), and the process CPU time (``force_cpu_ms``; one
-    thread, so a busy machine disturbs it less)."""
-    chain_terms(n_links, n_frames=4, fps=fps, reference=False).combine()  # compile / load kernels
-    quats = chain_path(n_links, n_frames, fps)
-    best, cpu = np.inf, np.inf
-    for _ in range(repeats):
-        t0, c0 = time.perf_counter(), time.process_time()
-        chain_terms(n_links, fps=fps, reference=False, quats=quats).combine(with_reference=False)
-        best, cpu = min(best, time.perf_counter() - t0), min(cpu, time.process_time() - c0)
-    return {"case": f"C{n_links}", "frames": n_frames, "force_ms": 1e3 * best / n_frames,
-            "force_cpu_ms": 1e3 * cpu / n_frames}

@@ -1,0 +1,6 @@
+"""Physical constants and defaults the physics modules share (one definition each)."""
+
+G = 9.81  # standard gravity, m/s^2
+STANDARD_GRAVITY = (0.0, -G, 0.0)  # in the y-up world physics works in
+# seconds: the Gaussian low-pass of the path before it is differentiated (physics.api says why)
+DEFAULT_SMOOTHING = 0.05
