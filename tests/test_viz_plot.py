@@ -59,34 +59,38 @@ def test_cli_plot_labels_from_file_names(tmp_path, capsys):
     assert main(["plot", str(a), "--label", "one", "--label", "two", "-o", str(tmp_path / "y.png")]) == 2
 
 
-def _fake_report(n=120):
-    frames = []
-    for k in range(n):
-        flight = 40 <= k < 70
-        poly = [[-0.1, 0.9], [0.1, 0.9], [0.1, 1.1], [-0.1, 1.1]] if flight else [[-2, 0], [3, 0], [4, 2.5], [0.5, 3.2], [-3, 1.8]]
-        frames.append({
-            "t": k / 60, "s": k / 30, "pdd": 0.1, "pd2": 4.0 if flight else 1.5,
-            "feasible": not flight, "distance": 2.9 if flight else 0.0, "torque_norm": 50.0 + k,
-            "contacts": [] if flight else ["lfoot", "ltoes", "rfoot"],
-            "region": poly,
-        })
-    return {"feasible_fraction": 0.75, "frames": frames}
+@pytest.fixture(scope="module")
+def physics_report(jump):
+    """A real physics report (what ``retime physics --report`` writes) of the jump's 1.9 s around the
+    flight at a third of its duration, with the regions per source frame as the demo stores them."""
+    from retime.method import Request, solve
+
+    r = solve("physics", jump.frames(slice(180, 407)), Request(scale=0.35))
+    data = r.report.to_json()
+    regions = r.detail.regions
+    data["regions"] = [np.asarray(regions.polygon(i), dtype=float).round(6).tolist() for i in range(regions.n_frames)]
+    return data
 
 
-def test_region_plot_and_strip(tmp_path):
+def test_region_plot_and_strip(tmp_path, physics_report):
+    from retime.physics.report import write_report
+
     path = tmp_path / "r.json"
-    path.write_text(json.dumps(_fake_report()))
+    write_report(physics_report, path)
     report = load_report(path)
-    assert pick_frame(report) == 40  # the first of the frames farthest from their region
+    dist = [f["distance"] for f in physics_report["frames"]]
+    assert max(dist) > 0  # a third of the duration leaves frames outside their region
+    assert pick_frame(report) == int(np.argmax(dist))  # the first of the frames farthest from their region
+    assert report["feasible_fraction"] == physics_report["summary"]["feasible_fraction"]
     out = tmp_path / "region.png"
-    assert plot_regions(report, None, out, size=(9.0, 5.0), dpi=100) == 40
+    assert plot_regions(report, None, out, size=(9.0, 5.0), dpi=100) == int(np.argmax(dist))
     with Image.open(out) as im:
         assert im.size == (900, 500)
     plot_contact_strip(report, tmp_path / "strip.png", size=(6.0, 2.0), dpi=100)
     with Image.open(tmp_path / "strip.png") as im:
         assert im.size == (600, 200)
     with pytest.raises(RetimeError, match="outside the report"):
-        plot_regions(report, 500, tmp_path / "no.png")
+        plot_regions(report, 5000, tmp_path / "no.png")
     # CLI
     assert main(["plot", "--regions", str(path), "--frame", "10", "-o", str(tmp_path / "c.png")]) == 0
 

@@ -1,6 +1,5 @@
 """Skeleton rendering: sizes, frame counts, durations (decoded with PyAV), sync, speed."""
 
-import time
 
 import av
 import numpy as np
@@ -161,20 +160,6 @@ def test_track_from_bundled_motion_is_in_metres():
     t2 = track_from_motion(fast, "linear", curve=curve)
     np.testing.assert_allclose(t2.speed, 2.0)
     np.testing.assert_allclose(t2.source_time, np.minimum(np.arange(fast.n_frames) / fast.fps * 2, m.duration), atol=1e-9)
-
-
-def test_render_speed_one_skeleton(figure):
-    """The issue asks for >= 60 rendered frames per second for one 31-joint skeleton (measured
-    ~150 on an idle 2-core machine); the bound here is loose so a busy CI machine does not fail."""
-    pos, parents, names = figure
-    assert pos.shape[1] == 31
-    r = Renderer([Track(pos, parents, 120.0, names=names, label="original")], fps=30)
-    r.frame(0)
-    start = time.perf_counter()
-    for k in range(r.n_frames):
-        r.frame(k)
-    fps = r.n_frames / (time.perf_counter() - start)
-    assert fps > 30, f"rendering is too slow: {fps:.1f} frames/s"
 
 
 def test_report_contacts_follow_the_source_frames(tmp_path):
