@@ -284,7 +284,9 @@ def _source_positions(curve, src_fps, n_src, out_fps):
     return np.clip(u, 0.0, n_src - 1)
 
 
-def _split(u, n):
+def frame_bracket(u, n):
+    """The frames around fractional frame indices ``u`` (in 0..n-1) and the weight of the later:
+    (i0, i1, w); a frame itself has w = 0 (the last one too)."""
     i0 = np.minimum(np.floor(u).astype(np.int64), max(n - 2, 0))
     w = u - i0
     i1 = np.minimum(i0 + 1, n - 1)
@@ -315,11 +317,11 @@ def apply_timing(motion: Motion, curve: TimingCurve, fps: float | None = None) -
         raise RetimeError(f"the timing curve reaches source time {curve.source_duration:.4g}s, "
                           f"past the end of the motion ({motion.duration:.4g}s)")
     u = _source_positions(curve, motion.fps, motion.n_frames, fps)
-    i0, i1, w = _split(u, motion.n_frames)
+    i0, i1, w = frame_bracket(u, motion.n_frames)
     rot = slerp(motion.rotations[i0], motion.rotations[i1], w[:, None])
     exact = w == 0.0  # output frames that land on a source frame copy it bit for bit
     rot[exact] = motion.rotations[i0[exact]]
-    tr = motion.translations[i0] + w[:, None, None] * (motion.translations[i1] - motion.translations[i0])
+    tr = lerp_frames(motion.translations, i0, i1, w)
     return Motion(motion.skeleton, rot, tr, fps)
 
 
@@ -329,6 +331,10 @@ def resample_array(values, src_fps: float, curve: TimingCurve, out_fps: float | 
     out_fps = src_fps if out_fps is None else out_fps
     check_frame_count(curve, out_fps)
     u = _source_positions(curve, src_fps, values.shape[0], out_fps)
-    i0, i1, w = _split(u, values.shape[0])
-    w = w.reshape((-1,) + (1,) * (values.ndim - 1))
+    return lerp_frames(values, *frame_bracket(u, values.shape[0]))
+
+
+def lerp_frames(values, i0, i1, w):
+    """Per-frame values (frames on axis 0) linearly between frames i0 and i1 with weight w of i1."""
+    w = np.asarray(w).reshape((-1,) + (1,) * (values.ndim - 1))
     return values[i0] + w * (values[i1].astype(float) - values[i0])

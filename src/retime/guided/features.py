@@ -83,21 +83,6 @@ def lowpass(values: np.ndarray, width: int) -> np.ndarray:
     return uniform_filter1d(values, size=width, axis=0, mode="nearest")
 
 
-def sample(values: np.ndarray, fps: float, times: np.ndarray) -> np.ndarray:
-    """Linear interpolation of frames ``values`` (axis 0, ``fps`` frames per second) at ``times`` (s).
-
-    Times outside the clip are clamped to its ends.
-    """
-    values = np.asarray(values, dtype=np.float64)
-    n = values.shape[0]
-    u = np.clip(np.asarray(times, dtype=np.float64) * fps, 0.0, n - 1)
-    i0 = np.minimum(np.floor(u).astype(np.int64), max(n - 2, 0))
-    if n == 1:
-        return np.repeat(values, len(u), axis=0)
-    w = (u - i0).reshape((-1,) + (1,) * (values.ndim - 1))
-    return values[i0] * (1.0 - w) + values[i0 + 1] * w
-
-
 def positions_in_root_frame(positions: np.ndarray, root_position: np.ndarray, root_quat: np.ndarray) -> np.ndarray:
     """Joint positions (F, J, 3) expressed in the root's coordinate frame.
 

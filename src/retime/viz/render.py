@@ -27,6 +27,7 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 from retime.errors import RetimeError
+from retime.warp import frame_bracket, lerp_frames
 
 # Colours (RGB).  One accent per panel, chosen by label when it names a method.
 METHOD_COLORS = {
@@ -133,17 +134,13 @@ def frame_count(duration: float, fps: float) -> int:
 def _sample(track: Track, times: np.ndarray) -> dict:
     """Linear interpolation of a track's per-frame data at ``times`` (clamped to the clip)."""
     u = np.clip(times * track.fps, 0.0, track.n_frames - 1)
-    i0 = np.floor(u).astype(np.int64)
-    i1 = np.minimum(i0 + 1, track.n_frames - 1)
-    w = (u - i0)[:, None, None]
-    pos = track.positions[i0] * (1.0 - w) + track.positions[i1] * w
-    out = {"positions": pos, "index": np.rint(u).astype(np.int64)}
-    w1 = w[:, 0, 0]
-    out["speed"] = None if track.speed is None else track.speed[i0] * (1 - w1) + track.speed[i1] * w1
+    i0, i1, w = frame_bracket(u, track.n_frames)
+    out = {"positions": lerp_frames(track.positions, i0, i1, w), "index": np.rint(u).astype(np.int64)}
+    out["speed"] = None if track.speed is None else lerp_frames(track.speed, i0, i1, w)
     out["source_time"] = (
         np.minimum(times, track.duration)
         if track.source_time is None
-        else track.source_time[i0] * (1 - w1) + track.source_time[i1] * w1
+        else lerp_frames(track.source_time, i0, i1, w)
     )
     out["contacts"] = None if track.contacts is None else track.contacts[out["index"]]
     return out
