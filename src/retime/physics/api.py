@@ -6,7 +6,8 @@
 Pipeline: path dynamics of the motion (:mod:`retime.physics.dynamics`, computed once; gravity and mass
 changes recombine them), feasible regions and contact forces per frame (:mod:`.regions`,
 :mod:`.forces`), the objective of Eq. 14 baked per frame (:mod:`.objective`), and the timing spline
-optimized from the uniform timing (:mod:`.optimize`). ``result.session`` continues interactively.
+optimized (:mod:`.optimize`) from the grid optimum of the same objective (:mod:`.globalstart`; the
+paper's uniform timing with ``start="uniform"``, the keytimes' piecewise-linear timing with keytimes). ``result.session`` continues interactively.
 
 Defaults, and why (measured on CMU jumps 16_06, 16_03, 13_11, 118_26; see the tests and README):
 

@@ -195,8 +195,8 @@ def write_report(result, scale: float, video_fps: float) -> None:
             add(f'<p class="caption">Output frame {_e(files["region_frame"])}'
                 + (f" (source frame {_e(src)}; McCann et al. show frame 143 of 16_06 in Fig. 6)" if src else "")
                 + ": the feasible region in the (p'', p'^2) plane, the original timing (0, 1) and the chosen "
-                "timing, over the magnitude of the objective (Eq. 14: squared distance to the region plus "
-                "the torque term; McCann et al., Fig. 4 and 6). Below: per output frame, which heel and toe "
+                "timing, over the magnitude of the objective (Eq. 14 as retime uses it: an exact penalty of the "
+                "residual force beyond the region plus the torque term; McCann et al., Fig. 4 and 6). Below: per output frame, which heel and toe "
                 "touch the ground and whether the chosen timing lies in its region.</p>")
         add("</section>")
 
