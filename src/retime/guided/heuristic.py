@@ -100,24 +100,30 @@ def solve_upper_bound(problem: WarpProblem, F, stats: SolveStats | None = None, 
     radius = 6 * problem.s if radius is None else int(radius)
     sol = None
     if path is not None and len(path) >= 2:
+        band = corridor(problem, np.linspace(0, problem.m - 1, len(path)), path, np.arange(len(path)), radius)
+        stats.optimization_s += time.perf_counter() - t0
         try:
-            band = corridor(problem, np.linspace(0, problem.m - 1, len(path)), path, np.arange(len(path)), radius)
-            sol = _refine(problem, F, band, radius, refine, stats)
+            sol = _refine(problem, lambda band: F, band, radius, refine, stats)
         except dp.InfeasibleWarp:
             sol = None
-    stats.optimization_s += time.perf_counter() - t0
+    else:
+        stats.optimization_s += time.perf_counter() - t0
     if sol is None:
         sol, F, stats = solve_heuristic(problem, F, stats=stats)
     return sol, F, stats
 
 
-def _refine(problem, F, band, radius, refine, stats):
-    """DP in ``band``, then again in a corridor around each result while it improves."""
+def _refine(problem, scores, band, radius, refine, stats):
+    """DP in ``band``, then again in a corridor around each result while it improves.
+    ``scores(band)``: the score table, holding at least the band's scores."""
     sol = None
     m = problem.m
     for _ in range(1 + max(0, int(refine))):
         stats.states += band.n_states(problem.s)
+        F = scores(band)
+        t0 = time.perf_counter()
         new = dp.solve_fixed(F, m, band=band)
+        stats.optimization_s += time.perf_counter() - t0
         if sol is not None and new.objective >= sol.objective - 1e-12 * max(1.0, abs(sol.objective)):
             break
         sol = new
@@ -185,17 +191,9 @@ def solve_heuristic(problem: WarpProblem, F=None, factor: int | None = None, rad
         stats.optimization_s += time.perf_counter() - t0
     except dp.InfeasibleWarp:
         band = problem.band()  # the coarse grid cannot express this problem: search the whole band
-    sol = None
-    for _ in range(1 + max(0, int(refine))):
-        stats.states += band.n_states(s)
+    def scores(band):
         need(band_mask(band, n, s))
-        t0 = time.perf_counter()
-        new = dp.solve_fixed(F, m, band=band)
-        stats.optimization_s += time.perf_counter() - t0
-        if sol is not None and new.objective >= sol.objective - 1e-12 * max(1.0, abs(sol.objective)):
-            break
-        sol = new
-        if radius == 0:
-            break
-        band = corridor(problem, np.arange(m), sol.frames, np.arange(m), radius)
+        return F
+
+    sol = _refine(problem, scores, band, radius, refine, stats)
     return sol, F, stats
