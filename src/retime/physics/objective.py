@@ -34,43 +34,68 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
 from ..errors import RetimeError
+from .polygon import boundary_closest, edge_projection
 
 OBJECTIVES = ("match", "minimize")
 
 
-@dataclass
-class BakedObjective:
-    """Everything an evaluation needs, in flat arrays (see :func:`bake`)."""
+class BakedArrays(NamedTuple):
+    """What the compiled evaluation reads (see :func:`bake`), passed to every kernel as one value."""
 
-    times: np.ndarray  # (n,) frame source times
     poff: np.ndarray  # (n+1,) polygon offsets
-    px: np.ndarray
+    px: np.ndarray  # (P,) polygon vertices, in the frame's metric
     py: np.ndarray
-    cen: np.ndarray  # (n, 2)
+    cen: np.ndarray  # (n, 2) fan centres, in the frame's metric
     scale: np.ndarray  # (n, 2) metric of the feasibility term: (u, v) -> (scale_u u, scale_v v)
     mode: np.ndarray  # (n,) 0 = fan wedges, 1 = one torque model + fan distance, 2 = degenerate polygon
     wc: np.ndarray  # (P, 6) torque coefficients per wedge (wedge k of frame i at poff[i] + k)
-    alpha: float
-    beta: float
-    tau_scale: float
     s: np.ndarray  # (Ns,) source sample times
     omega: np.ndarray  # (Ns,) trapezoid weights in source time
     fi: np.ndarray  # (Ns,) frame index of each sample
     fw: np.ndarray  # (Ns,) weight of frame fi + 1
-    cache: np.ndarray  # (n,) last wedge per frame (amortized lookup)
-    gamma: float = 0.0  # weight of the speed regularizer gamma (p' + 1/p' - 2) per source second
-    delta: float = 0.0  # 0: alpha d^2 (Eq. 14); > 0: alpha (sqrt(d^2 + delta^2) - delta) (exact penalty)
-    # unbaked data (NP-Obj): per wedge affine lambda and the dynamics
+    alpha: float  # weight of the feasibility term
+    delta: float  # 0: alpha d^2 (Eq. 14); > 0: alpha (sqrt(d^2 + delta^2) - delta) (exact penalty)
+    gamma: float  # weight of the speed regularizer gamma (p' + 1/p' - 2) per source second
+
+
+@dataclass
+class BakedObjective:
+    """The baked objective (see :func:`bake`): immutable once baked, so sessions and threads may
+    share it; what an evaluation changes lives in an :class:`ObjectiveWorkspace`."""
+
+    times: np.ndarray  # (n,) frame source times
+    arrays: BakedArrays
+    beta: float
+    tau_scale: float
     seconds: float = 0.0
 
     @property
     def n_frames(self) -> int:
         return len(self.times)
+
+
+@dataclass
+class ObjectiveWorkspace:
+    """The mutable side of evaluating one objective: the last fan wedge found per frame, where the
+    next lookup starts (amortized: consecutive evaluations ask about nearby timings). Belongs to one
+    optimization (:class:`~.optimize.Problem`, hence one :class:`~.optimize.RetimingSession`) and
+    one thread."""
+
+    wedge: np.ndarray  # (n,) int64
+
+    @classmethod
+    def for_objective(cls, obj: BakedObjective) -> ObjectiveWorkspace:
+        return cls(np.zeros(obj.n_frames, dtype=np.int64))
+
+
+def _wedges(obj, workspace):
+    return (workspace or ObjectiveWorkspace.for_objective(obj)).wedge
 
 
 def samples(times, samples_per_frame=4, interp="nearest"):
@@ -196,13 +221,11 @@ def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_f
     Fr = np.empty((len(poff) - 1, 4))
     Fr[:, :2], Fr[:, 2:] = scale, cen * scale
     C = np.ascontiguousarray
-    out = BakedObjective(np.asarray(regions.times, float), poff, C(V[:, 0]), C(V[:, 1]), C(Fr[:, 2:]), C(Fr[:, :2]),
-                         mode, C(V[:, 2:]), float(alpha),
-                         float(beta), float(tau_scale), s, om, fi, fw,
-                         np.zeros(len(poff) - 1, dtype=np.int64), float(gamma),
-                         0.0 if penalty == "l2" else float(delta))
     if penalty not in ("l1", "l2"):
         raise RetimeError(f"unknown penalty {penalty!r} (use 'l2' or 'l1')")
+    arrays = BakedArrays(poff, C(V[:, 0]), C(V[:, 1]), C(Fr[:, 2:]), C(Fr[:, :2]), mode, C(V[:, 2:]), s, om, fi, fw,
+                         float(alpha), 0.0 if penalty == "l2" else float(delta), float(gamma))
+    out = BakedObjective(np.asarray(regions.times, float), arrays, float(beta), float(tau_scale))
     out.seconds = time.perf_counter() - t0
     return out
 
@@ -350,54 +373,19 @@ def _bake_kernel(a, b, c, N, tgt, poff, px, py, cen, lam, clam, mode, scale, wc)
 # Evaluation
 # ------------------------------------------------------------------------------------------------
 
-@njit(cache=True, inline="always")
-def _closest_brute(p0, p1, px, py, u, v):
-    nv = p1 - p0
-    if nv == 1:
-        return px[p0], py[p0]
-    bd = 1e300
-    qx, qy = px[p0], py[p0]
-    for k in range(nv):
-        ax, ay = px[p0 + k], py[p0 + k]
-        j = p0 + (k + 1) % nv
-        ex, ey = px[j] - ax, py[j] - ay
-        ee = ex * ex + ey * ey
-        t = 0.0
-        if ee > 0:
-            t = ((u - ax) * ex + (v - ay) * ey) / ee
-            t = min(1.0, max(0.0, t))
-        cx, cy = ax + t * ex, ay + t * ey
-        d = (cx - u) ** 2 + (cy - v) ** 2
-        if d < bd:
-            bd = d
-            qx, qy = cx, cy
-    return qx, qy
-
-
-@njit(cache=True, inline="always")
-def _edge_proj(p0, nv, e, px, py, u, v):
-    """Closest point of edge e to (u, v) and the unclamped edge parameter."""
-    f = e + 1 if e + 1 < nv else 0
-    ax, ay = px[p0 + e], py[p0 + e]
-    ex, ey = px[p0 + f] - ax, py[p0 + f] - ay
-    ee = ex * ex + ey * ey
-    t = ((u - ax) * ex + (v - ay) * ey) / ee if ee > 0 else 0.0
-    tc = min(1.0, max(0.0, t))
-    return ax + tc * ex, ay + tc * ey, t
-
-
 @njit(cache=True, fastmath=True, error_model="numpy", inline="always")
-def _frame_parts(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache):
-    """Frame i at (u, v) = (p'', p'^2): the torque term g and its gradient (gu, gv), the offset (du, dv)
-    from the region's closest point and its square d2 (in the frame's metric, which scales u by su
-    and v by sv)."""
+def _frame_parts(i, u0, v0, ob, cache):
+    """Frame i at (u, v) = (p'', p'^2) of the baked arrays ``ob``: the torque term g and its gradient
+    (gu, gv), the offset (du, dv) from the region's closest point and its square d2 (in the frame's
+    metric, which scales u by su and v by sv). ``cache[i]``: the wedge to start from, updated."""
+    poff, px, py, cen, scale, mode, wc = ob.poff, ob.px, ob.py, ob.cen, ob.scale, ob.mode, ob.wc
     su, sv = scale[i, 0], scale[i, 1]
     u, v = su * u0, sv * v0
     p0, p1 = poff[i], poff[i + 1]
     nv = p1 - p0
     md = mode[i]
     if md == 2:
-        qx, qy = _closest_brute(p0, p1, px, py, u, v)
+        qx, qy = boundary_closest(p0, p1, px, py, u, v)
         k = 0
         # a degenerate polygon is a point or a segment: its interior is empty
     else:
@@ -431,7 +419,7 @@ def _frame_parts(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache):
             qx, qy = u, v
         else:
             # outside, beyond edge k: walk along the boundary while the distance drops
-            qx, qy, t = _edge_proj(p0, nv, k, px, py, u, v)
+            qx, qy, t = edge_projection(p0, nv, k, px, py, u, v)
             d = (qx - u) ** 2 + (qy - v) ** 2
             if t < 0.0 or t > 1.0:
                 step = -1 if t < 0.0 else 1
@@ -442,7 +430,7 @@ def _frame_parts(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache):
                         e = nv - 1
                     elif e >= nv:
                         e = 0
-                    q2x, q2y, t2 = _edge_proj(p0, nv, e, px, py, u, v)
+                    q2x, q2y, t2 = edge_projection(p0, nv, e, px, py, u, v)
                     d2 = (q2x - u) ** 2 + (q2y - v) ** 2
                     if d2 < d:
                         qx, qy, d = q2x, q2y, d2
@@ -471,9 +459,10 @@ def penalty(d2, alpha, delta):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", inline="always")
-def _frame_eval(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache, alpha, delta):
+def _frame_eval(i, u0, v0, ob, cache):
     """f, df/du, df/dv of frame i at (u, v) = (p'', p'^2) (polygon and centre in the frame's metric)."""
-    g, gu, gv, du, dv, d2, su, sv = _frame_parts(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache)
+    alpha, delta = ob.alpha, ob.delta
+    g, gu, gv, du, dv, d2, su, sv = _frame_parts(i, u0, v0, ob, cache)
     if d2 == 0.0:  # inside the region: only the torque term
         return g, gu, gv
     if delta <= 0.0:
@@ -529,9 +518,9 @@ def _invert(a0, a1, a2, a3, sj, x, h, S, steps):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
-def _chunk(j0, j1, Asp, T, S, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode, wc, cache, alpha,
-           delta, gamma, want_grad, gc):
+def _chunk(j0, j1, Asp, T, S, breaks, Msp, ob, cache, want_grad, gc):
     """Samples j0..j1-1 of the objective (see _evaluate); gradient added into gc."""
+    s, omega, fi, fw, gamma = ob.s, ob.omega, ob.fi, ob.fw, ob.gamma
     n_span = len(breaks) - 1
     gT = 0.0
     total = 0.0
@@ -578,12 +567,12 @@ def _chunk(j0, j1, Asp, T, S, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, 
         wgt = fw[jj]
         f, fu, fv = 0.0, 0.0, 0.0
         if wgt < 1.0:
-            f0, fu0, fv0 = _frame_eval(i, u, v, poff, px, py, cen, scale, mode, wc, cache, alpha, delta)
+            f0, fu0, fv0 = _frame_eval(i, u, v, ob, cache)
             f += (1.0 - wgt) * f0
             fu += (1.0 - wgt) * fu0
             fv += (1.0 - wgt) * fv0
         if wgt > 0.0:
-            f1, fu1, fv1 = _frame_eval(i + 1, u, v, poff, px, py, cen, scale, mode, wc, cache, alpha, delta)
+            f1, fu1, fv1 = _frame_eval(i + 1, u, v, ob, cache)
             f += wgt * f1
             fu += wgt * fu1
             fv += wgt * fv1
@@ -607,22 +596,19 @@ def _chunk(j0, j1, Asp, T, S, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, 
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
-def _evaluate(c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode, wc, cache, alpha, delta,
-              gamma, want_grad, gc):
+def _evaluate(c, T, breaks, Msp, ob, cache, want_grad, gc):
     """Objective (and gradient w.r.t. c and T when want_grad) of the spline with coefficients c."""
     Asp = _span_poly(c, Msp, len(breaks) - 1)
     for k in range(len(gc)):
         gc[k] = 0.0
-    return _chunk(0, len(s), Asp, T, c[len(c) - 1], breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode,
-                  wc, cache, alpha, delta, gamma, want_grad, gc)
+    return _chunk(0, len(ob.s), Asp, T, c[len(c) - 1], breaks, Msp, ob, cache, want_grad, gc)
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", parallel=True)
-def _evaluate_par(nch, c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode, wc, cache, alpha, delta,
-                  gamma, want_grad, gc):
+def _evaluate_par(nch, c, T, breaks, Msp, ob, cache, want_grad, gc):
     """_evaluate split into ``nch`` chunks of samples run on parallel threads."""
     Asp = _span_poly(c, Msp, len(breaks) - 1)
-    ns = len(s)
+    ns = len(ob.s)
     tot = np.zeros(nch)
     gts = np.zeros(nch)
     gcs = np.zeros((nch, len(gc)))
@@ -630,8 +616,7 @@ def _evaluate_par(nch, c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, s
     for k in prange(nch):
         j0 = (ns * k) // nch
         j1 = (ns * (k + 1)) // nch
-        tot[k], gts[k] = _chunk(j0, j1, Asp, T, S, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode,
-                                wc, cache, alpha, delta, gamma, want_grad, gcs[k])
+        tot[k], gts[k] = _chunk(j0, j1, Asp, T, S, breaks, Msp, ob, cache, want_grad, gcs[k])
     for q in range(len(gc)):
         acc = 0.0
         for k in range(nch):
@@ -645,7 +630,7 @@ PARALLEL_MIN_SAMPLES = 20000  # threads pay off only for long clips; on a shared
 
 
 def _kernel(obj):
-    if len(obj.s) < PARALLEL_MIN_SAMPLES:  # the usual case, decided without asking numba
+    if len(obj.arrays.s) < PARALLEL_MIN_SAMPLES:  # the usual case, decided without asking numba
         return _evaluate
     import numba
 
@@ -655,40 +640,35 @@ def _kernel(obj):
     return _evaluate
 
 
-def evaluate(obj: BakedObjective, spline, w=None, grad=False):
-    """E(w) (and dE/dw)."""
+def evaluate(obj: BakedObjective, spline, w=None, grad=False, workspace: ObjectiveWorkspace | None = None):
+    """E(w) (and dE/dw). ``workspace``: the caller's wedge hints (default: fresh ones)."""
     w = spline.w if w is None else w
     c = spline.coefficients(w)
     T = spline.duration_of(w)
     gc = np.zeros(len(c))
-    val, gT = _kernel(obj)(c, T, spline.breaks, spline.span_matrices, obj.s, obj.omega, obj.fi, obj.fw,
-                        obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc, obj.cache, obj.alpha,
-                        obj.delta, obj.gamma, grad, gc)
+    val, gT = _kernel(obj)(c, T, spline.breaks, spline.span_matrices, obj.arrays, _wedges(obj, workspace), grad, gc)
     if not grad:
         return float(val)
     return float(val), spline.chain(gc, gT, w)
 
 
-def evaluate_c(obj: BakedObjective, spline, c, T, grad=False):
+def evaluate_c(obj: BakedObjective, spline, c, T, grad=False, workspace: ObjectiveWorkspace | None = None):
     """E and (dE/dc, dE/dT) for raw coefficients (tests, benchmarks)."""
     gc = np.zeros(len(c))
-    val, gT = _kernel(obj)(np.asarray(c, float), float(T), spline.breaks, spline.span_matrices, obj.s, obj.omega,
-                        obj.fi, obj.fw, obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc,
-                        obj.cache, obj.alpha, obj.delta, obj.gamma, grad, gc)
+    val, gT = _kernel(obj)(np.asarray(c, float), float(T), spline.breaks, spline.span_matrices, obj.arrays,
+                           _wedges(obj, workspace), grad, gc)
     return (float(val), gc, float(gT)) if grad else float(val)
 
 
-def frame_terms(obj: BakedObjective, i, u, v):
+def frame_terms(obj: BakedObjective, i, u, v, workspace: ObjectiveWorkspace | None = None):
     """(distance to the region in the objective's metric, torque term) of frame i at (u, v)."""
-    g, _, _, _, _, d2, _, _ = _frame_parts(int(i), float(u), float(v), obj.poff, obj.px, obj.py, obj.cen, obj.scale,
-                                           obj.mode, obj.wc, obj.cache)
+    g, _, _, _, _, d2, _, _ = _frame_parts(int(i), float(u), float(v), obj.arrays, _wedges(obj, workspace))
     return math.sqrt(d2), g
 
 
-def frame_gradient(obj: BakedObjective, i, u, v):
+def frame_gradient(obj: BakedObjective, i, u, v, workspace: ObjectiveWorkspace | None = None):
     """(f, df/du, df/dv) of frame i with the baked weights (tests)."""
-    return _frame_eval(int(i), float(u), float(v), obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc,
-                       obj.cache, obj.alpha, obj.delta)
+    return _frame_eval(int(i), float(u), float(v), obj.arrays, _wedges(obj, workspace))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -716,7 +696,7 @@ def unbaked(pd, regions, target, obj: BakedObjective) -> UnbakedObjective:
 
     act = actuated_mask(pd)
     K = np.asarray(pd.N).shape[2]
-    lam_aff = np.zeros((len(obj.px), 3, K))
+    lam_aff = np.zeros((len(obj.arrays.px), 3, K))
     for i in range(regions.n_frames):
         fan = fan_model(regions, i)
         p0, p1 = regions.offsets[i], regions.offsets[i + 1]
@@ -730,8 +710,8 @@ def unbaked(pd, regions, target, obj: BakedObjective) -> UnbakedObjective:
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
-def _evaluate_unbaked(c, T, breaks, Msp, s, omega, fi, poff, px, py, cen, scl, mode, wc, cache, alpha, delta,
-                      gamma, a, b, cc, tgt, N, lam_aff, tscale):
+def _evaluate_unbaked(c, T, breaks, Msp, ob, cache, a, b, cc, tgt, N, lam_aff, tscale):
+    s, omega, fi, poff, mode, wc, gamma = ob.s, ob.omega, ob.fi, ob.poff, ob.mode, ob.wc, ob.gamma
     n_span = len(breaks) - 1
     Asp = _span_poly(c, Msp, n_span)
     nr = a.shape[1]
@@ -754,7 +734,7 @@ def _evaluate_unbaked(c, T, breaks, Msp, s, omega, fi, poff, px, py, cen, scl, m
         v = pd * pd
         i = fi[jj]
         # distance term and wedge from the baked geometry (alpha only), torque term per dof
-        fdist, _, _ = _frame_eval(i, u, v, poff, px, py, cen, scl, mode, wc, cache, alpha, delta)
+        fdist, _, _ = _frame_eval(i, u, v, ob, cache)
         p0 = poff[i]
         kw = p0 + (cache[i] if mode[i] == 0 else 0)
         for q in range(K):
@@ -777,6 +757,5 @@ def evaluate_unbaked(u_obj: UnbakedObjective, spline, w=None) -> float:
     o = u_obj.baked
     w = spline.w if w is None else w
     return float(_evaluate_unbaked(spline.coefficients(w), spline.duration_of(w), spline.breaks,
-                                   spline.span_matrices, o.s, o.omega, o.fi, o.poff, o.px, o.py, o.cen, o.scale,
-                                   o.mode, o.wc, o.cache, o.alpha, o.delta, o.gamma, u_obj.a, u_obj.b, u_obj.c,
+                                   spline.span_matrices, o.arrays, _wedges(o, None), u_obj.a, u_obj.b, u_obj.c,
                                    u_obj.tgt, u_obj.N, u_obj.lam_aff, u_obj.scale))

@@ -455,10 +455,13 @@ def physics_frame_region(result, report: dict, frame: int, n: int = 120) -> None
     lo[1] = max(lo[1], -0.05 * span[1])
     U = np.linspace(lo[0], hi[0], n)
     V = np.linspace(lo[1], hi[1], n)
+    from retime.physics.objective import ObjectiveWorkspace
+
     obj = result.objective
+    hints = ObjectiveWorkspace.for_objective(obj)
     Z = np.empty((n, n))
     for a, v in enumerate(V):
         for b, u in enumerate(U):
-            d, f = frame_terms(obj, i, u, v)
-            Z[a, b] = obj.alpha * d * d + f
+            d, f = frame_terms(obj, i, u, v, hints)
+            Z[a, b] = obj.arrays.alpha * d * d + f
     rec["objective"] = {"pdd": U, "pd2": V, "values": Z}
