@@ -672,6 +672,75 @@ def frame_gradient(obj: BakedObjective, i, u, v, workspace: ObjectiveWorkspace |
 
 
 # ------------------------------------------------------------------------------------------------
+# NumPy twins (the reference of tests/test_kernel_parity.py): the same objective, computed afresh
+# without numba, without wedge hints and without Newton's method
+# ------------------------------------------------------------------------------------------------
+
+def frame_terms_numpy(obj: BakedObjective, i, u, v):
+    """Twin of :func:`frame_terms`: (distance in the objective's metric, torque term)."""
+    from .polygon import closest_points_numpy
+
+    ob = obj.arrays
+    su, sv = ob.scale[i]
+    x, y = su * u, sv * v
+    p0, p1 = ob.poff[i], ob.poff[i + 1]
+    P = np.column_stack([ob.px[p0:p1], ob.py[p0:p1]])
+    k = 0
+    if ob.mode[i] == 2:  # a point or a segment: no interior
+        E = np.roll(P, -1, axis=0) - P
+        ee = (E ** 2).sum(1)
+        t = np.clip(((x - P[:, 0]) * E[:, 0] + (y - P[:, 1]) * E[:, 1]) / np.where(ee > 0, ee, 1.0), 0.0, 1.0)
+        C = P + np.where(ee > 0, t, 0.0)[:, None] * E
+        d = float(np.min(np.hypot(C[:, 0] - x, C[:, 1] - y))) if len(P) > 1 else float(np.hypot(*(P[0] - (x, y))))
+    else:
+        d = float(closest_points_numpy(P, [(x, y)])[1][0])
+        # the fan wedge k whose rays from the centre enclose the direction to (x, y)
+        R0 = P - ob.cen[i]
+        R1 = np.roll(R0, -1, axis=0)
+        dx, dy = x - ob.cen[i, 0], y - ob.cen[i, 1]
+        between = (R0[:, 0] * dy - R0[:, 1] * dx >= 0.0) & (dx * R1[:, 1] - dy * R1[:, 0] > 0.0)
+        k = int(np.argmax(between)) if between.any() else 0
+    w = ob.wc[p0 + k] if ob.mode[i] == 0 else ob.wc[p0]  # mode 1: one torque model for the frame
+    g = w[0] * v * v + w[1] * u * u + w[2] * u * v + w[3] * v + w[4] * u + w[5]
+    return d, float(g)
+
+
+def _penalty_numpy(d2, alpha, delta):
+    if delta <= 0.0:
+        return alpha * d2
+    return np.where(d2 == 0.0, 0.0, alpha * (np.sqrt(d2 + delta * delta) - delta))
+
+
+def evaluate_numpy(obj: BakedObjective, spline, w=None) -> float:
+    """Twin of :func:`evaluate` (the value): each sample's output time by bisection on its span's
+    cubic, each frame term by :func:`frame_terms_numpy`."""
+    ob = obj.arrays
+    w = spline.w if w is None else w
+    c = spline.coefficients(w)
+    T = spline.duration_of(w)
+    breaks, Msp = spline.breaks, spline.span_matrices
+    n_span = len(breaks) - 1
+    Asp = np.einsum("mrl,ml->mr", Msp, c[np.arange(n_span)[:, None] + np.arange(4)])  # s(x) per span
+    m = np.clip(np.searchsorted(Asp[:, 0], ob.s, side="right") - 1, 0, n_span - 1)
+    a0, a1, a2, a3 = Asp[m].T
+    lo, hi = np.zeros(len(m)), (breaks[m + 1] - breaks[m]).astype(float)
+    for _ in range(200):
+        x = 0.5 * (lo + hi)
+        above = a0 + x * (a1 + x * (a2 + x * a3)) > ob.s
+        hi, lo = np.where(above, x, hi), np.where(above, lo, x)
+    x = 0.5 * (lo + hi)
+    pd = (a1 + x * (2.0 * a2 + 3.0 * a3 * x)) / T
+    u = (2.0 * a2 + 6.0 * a3 * x) / T ** 2
+    v = pd * pd
+    f = np.zeros(len(m))
+    for side, weight in ((0, 1.0 - ob.fw), (1, ob.fw)):
+        for j in np.flatnonzero(weight > 0.0):
+            d, g = frame_terms_numpy(obj, ob.fi[j] + side, u[j], v[j])
+            f[j] += weight[j] * (g + _penalty_numpy(d * d, ob.alpha, ob.delta))
+    return float(np.sum(ob.omega * (f / pd + ob.gamma * (pd + 1.0 / pd - 2.0))))
+
+
+# ------------------------------------------------------------------------------------------------
 # Without baking (Fig. 12's NP-Obj): per-dof torques at every sample, for comparison only
 # ------------------------------------------------------------------------------------------------
 
