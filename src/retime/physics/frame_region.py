@@ -320,7 +320,7 @@ def _polygon(a, b, c, N, lo, hi, rho, act, rows, other, opts, Kall, eps, pool, l
 
 def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_root: int,
                  budget=None, noise=None, pool: HighsPool | None = None) -> FrameRegion:
-    """The feasible polygon of one frame (see the module docstring).
+    """The feasible polygon of one frame (the model: :mod:`.regions`).
 
     ``budget`` (nv,): row residuals the captured motion needs at this frame under the original
     physics (:func:`source_fit`); ``None`` means these coefficients *are* the original physics and the

@@ -27,10 +27,9 @@ when the path gives frames up) and refined by the local optimizer
 (:mod:`.optimize`) on the objective, with the frames the path gives up softened (:func:`soften`) so
 that the refinement keeps the violation where the grid optimum put it.
 
-Measured (CMU jumps at 0.4 of their duration, below their least physical duration; fraction of
-output frames feasible, grid start vs the paper's uniform start): 16_06 0.92 vs 0.75, 13_39 0.79 vs
-0.58, 13_11 0.86 vs 0.78, 16_05 0.61 vs 0.48; at half duration 02_04 (which starts with a T-pose)
-0.92 vs 0.83.
+How the two starts compare on the CMU jumps (the fraction of output frames feasible, with this
+start and with the paper's uniform one): ``benchmarks/physics_jumps.py`` and
+``benchmarks/physics_jumps.py --start uniform``.
 """
 from __future__ import annotations
 

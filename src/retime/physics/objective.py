@@ -1,8 +1,13 @@
 """The retiming objective (McCann et al. 2006, Eq. 14, sec. 3.5-3.6), baked and compiled.
 
-    E = integral over output time of  alpha |(p'', p'^2) - closest(region)|^2
-                                    + beta  |tau(p'', p'^2) - tau'|^2 / tau_scale^2
+    E = integral over output time of  alpha pen(d) + beta |tau(p'', p'^2) - tau'|^2 / tau_scale^2
+      + gamma * integral over source time of (p' + 1/p' - 2)
 
+``d`` is the distance from (p'', p'^2) to the frame's region, in the plane (``metric="plane"``, the
+paper's) or with u and v scaled per frame by the root wrench they demand (``"residual"``, the
+default, :func:`residual_scales`); ``pen(d)`` is d^2 as in Eq. 14 (``penalty="l2"``) or the exact
+penalty sqrt(d^2 + delta^2) - delta (``"l1"``, which :mod:`retime.physics.api` uses). The last
+term, a mild preference for the original speed, is not the paper's (``gamma = 0`` removes it).
 ``tau`` are the actuated joint torques with the fan contact model of :mod:`retime.physics.forces`;
 the target ``tau'`` is zero (``"minimize"``, least effort) or the original motion's torques at its
 original timing (``"match"``). ``tau_scale^2`` is the mean squared original torque, so ``beta`` is
@@ -23,8 +28,9 @@ written.
 **Integration.** The integral over output time is taken over source time instead,
 ``E = integral f / p' ds``, with samples at a fixed spacing of 1 / (samples_per_frame * fps) in
 source time (4 per source frame by default, as the paper asks: "at least once every quarter of a
-source frame"). Between two frames the integrand is interpolated linearly (the paper interpolates the
-coefficients linearly). Each sample's output time is found by inverting the spline (Newton,
+source frame"). Each sample takes the terms of its nearest frame (``interp="nearest"``, the default)
+or blends the two frames around it (``"linear"``, as the paper interpolates the coefficients). Each
+sample's output time is found by inverting the spline (Newton,
 amortized by locality), so the set of samples and their frames never change during optimization
 and the objective is smooth in the spline's parameters. Its gradient is analytic: with respect to the
 coefficients c and the duration T (each sample touches four coefficients), then through
@@ -103,7 +109,7 @@ def samples(times, samples_per_frame=4, interp="nearest"):
 
     ``interp="linear"`` blends the two frames around a sample (the paper's linear interpolation of
     coefficients); ``"nearest"`` (default) takes the nearest frame's, which needs one frame
-    evaluation per sample instead of up to two (30% faster) for the same sampling density."""
+    evaluation per sample instead of up to two for the same sampling density."""
     times = np.asarray(times, dtype=float)
     spf = int(samples_per_frame)
     if spf < 1:

@@ -487,9 +487,9 @@ class RetimingSession:
 
     def reconverge(self, max_iter=2000, tol=1e-5, max_seconds=None) -> SolveInfo:
         """Re-optimize from the current curve. The default ``tol`` (relative objective gain over ten
-        iterations) suits interaction: on 16_16 at half duration the curve then differs from the fully
-        converged one by at most about 4.5 ms of source time, half a 120 Hz frame (1e-6: 1 ms,
-        and about 1.6x the time; ``benchmarks/physics.py`` prints the deviation it measures)."""
+        iterations) suits interaction: the curve then stays within a fraction of a source frame of
+        the fully converged one (``benchmarks/physics.py`` measures how far, on 16_16 at half
+        duration)."""
         w, info = solve(self.problem, self.spline.w, method=self.method, max_iter=max_iter, tol=tol,
                         max_seconds=max_seconds)
         self.spline.w = w
