@@ -2,7 +2,7 @@
 
 An output frame shows source time s with playback speed p' and acceleration p''. It is **in its
 region** when the residual wrench (body weights, the relaxation's weighted L1 measure, found by an
-LP: :func:`retime.physics.regions.residual_at`) that (u, v) = (p'', p'^2) needs beyond the nearest
+LP: :func:`retime.physics.frame_region.residual_at`) that (u, v) = (p'', p'^2) needs beyond the nearest
 source frame's feasible region is at most :data:`IN_REGION_TOL`. Inside the region's polygon the
 residual is 0 without an LP.
 """
@@ -55,15 +55,17 @@ class Feasibility:
 def feasibility(dynamics, regions, s, speed, accel, tol=IN_REGION_TOL) -> Feasibility:
     """:class:`Feasibility` of output frames showing source times ``s`` at speed p' and
     acceleration p'' (arrays of one length)."""
-    from .regions import residual_at
+    from .frame_region import residual_at
+    from .highs_lp import HighsPool
 
     frames = source_frames(regions.times, s)
     u = np.asarray(accel, dtype=float)
     v = np.asarray(speed, dtype=float) ** 2
     distance = regions.distances(frames, u, v)
     residual = np.zeros(len(frames))
+    pool = HighsPool()  # one set of HiGHS objects for all the frames' LPs
     for k in np.flatnonzero(distance > INSIDE_DISTANCE):
-        residual[k] = residual_at(dynamics, regions, int(frames[k]), float(u[k]), float(v[k]))
+        residual[k] = residual_at(dynamics, regions, int(frames[k]), float(u[k]), float(v[k]), pool)
     return Feasibility(frames, distance, residual, tol)
 
 

@@ -40,6 +40,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
+from .constants import STANDARD_GRAVITY
+
 FREE, SPHERICAL, FIXED = 0, 1, 2
 N_TERMS = 5  # a, b, gravity x, gravity y, gravity z
 JOINT_DOFS = {FREE: 6, SPHERICAL: 3, FIXED: 0}
@@ -480,7 +482,7 @@ def points_jacobian_transpose(tree: TreeModel, R, o, body, points, dirs, rows=No
     return out
 
 
-def generalized_forces(tree: TreeModel, root_pos, quats, qd, qdd, gravity=(0.0, -9.81, 0.0)):
+def generalized_forces(tree: TreeModel, root_pos, quats, qd, qdd, gravity=STANDARD_GRAVITY):
     """Inverse dynamics tau = M(q) qdd + C(q, qd) qd + g(q) (n, nv), the same as ``pinocchio.rnea``."""
     R, o, W = body_wrenches(tree, root_pos, quats, qd, qdd)
     total = W[:, 1] + np.einsum("ntbs,t->nbs", W[:, 2:], np.asarray(gravity, dtype=float))
