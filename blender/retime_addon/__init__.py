@@ -75,24 +75,23 @@ def draw_panel(layout, context):
     op.gravity_scale, op.mass = settings.gravity_scale, settings.mass if settings.method == "physics" else ""
 
 
-class RETIME_PT_dopesheet(bpy.types.Panel):
+class RetimePanel:
+    """The panel's place in an editor's sidebar; the subclasses name the editor."""
+
     bl_label = "Retime"
+    bl_region_type = "UI"
+    bl_category = "Retime"
+
+    def draw(self, context):
+        draw_panel(self.layout, context)
+
+
+class RETIME_PT_dopesheet(RetimePanel, bpy.types.Panel):
     bl_space_type = "DOPESHEET_EDITOR"
-    bl_region_type = "UI"
-    bl_category = "Retime"
-
-    def draw(self, context):
-        draw_panel(self.layout, context)
 
 
-class RETIME_PT_nla(bpy.types.Panel):
-    bl_label = "Retime"
+class RETIME_PT_nla(RetimePanel, bpy.types.Panel):
     bl_space_type = "NLA_EDITOR"
-    bl_region_type = "UI"
-    bl_category = "Retime"
-
-    def draw(self, context):
-        draw_panel(self.layout, context)
 
 
 CLASSES = (RetimePreferences, RetimeSettings, operator.RETIME_OT_retime, RETIME_PT_dopesheet, RETIME_PT_nla)
