@@ -7,6 +7,7 @@ import numpy as np
 from . import armature
 from .runner import RetimeAddonError
 
+KEY_GAP = 0.02  # frames; F-Curve.update() merges keys closer than 0.01
 ROTATIONS = {"rotation_quaternion": 4, "rotation_axis_angle": 4, "rotation_euler": 3}
 
 
@@ -71,16 +72,15 @@ def _from_quaternions(prop, quats, order):
     return np.array(out)
 
 
-def bake(obj, action, slot, source_frames, warp_source_times, fps, name):
-    """A new action whose keys at every output frame play the source at the warp's source times: rotations
-    slerped between the two nearest source frames (quaternion bones as quaternions, Euler bones as
-    continuous Euler angles), every other animated property interpolated linearly. The source action
-    is not changed. Returns (the new action, its slot or None)."""
+def resample(obj, action, slot, source_frames, positions, key_frames, name):
+    """A new action keyed at ``key_frames`` with the source played at ``positions`` (i0, i1, w: between
+    source frames i0 and i1 at weight w, as retime.warp.apply_timing): rotations slerped (quaternion bones
+    as quaternions, Euler bones as continuous Euler angles), every other animated property interpolated
+    linearly. The source action is not changed. Returns (the new action, its slot or None)."""
     curves = armature.action_fcurves(action, slot)
     if not curves:
         raise RetimeAddonError(f"the action {action.name!r} has no F-curves to retime")
-    i0, i1, w = source_positions(warp_source_times, fps, len(source_frames))
-    out_frames = source_frames[0] + np.arange(len(w), dtype=float)
+    i0, i1, w = positions
     new, new_slot, new_curves = armature.new_action(obj, name)
     by_path = {}
     for fc in curves:
@@ -97,18 +97,60 @@ def bake(obj, action, slot, source_frames, warp_source_times, fps, name):
             quats = _to_quaternions(prop, values, order)
             out = _from_quaternions(prop, [quats[a].slerp(quats[b], t) for a, b, t in zip(i0, i1, w)], order)
             for i in range(size):
-                armature.write_curve(new_curves, path, i, group, out_frames, out[:, i])
+                armature.write_curve(new_curves, path, i, group, key_frames, out[:, i])
         else:
             for i, v in sampled.items():
-                armature.write_curve(new_curves, path, i, group, out_frames, v[i0] + w * (v[i1] - v[i0]))
+                armature.write_curve(new_curves, path, i, group, key_frames, v[i0] + w * (v[i1] - v[i0]))
     return new, new_slot
+
+
+def bake(obj, action, slot, source_frames, warp_source_times, fps, name):
+    """A new action with a key at every output frame, playing the source at the warp's source times."""
+    positions = source_positions(warp_source_times, fps, len(source_frames))
+    out_frames = source_frames[0] + np.arange(len(positions[0]), dtype=float)
+    return resample(obj, action, slot, source_frames, positions, out_frames, name)
+
+
+def interpolates_like_retime(action, slot):
+    """Whether Blender's own evaluation of ``action`` between frames plays retime's poses: keys on whole
+    frames, linear, rotations as quaternions (Blender normalizes their linear blend: within 1e-6 of a
+    slerp at mocap rates). Euler angles blended linearly are another rotation than the slerp."""
+    for fc in armature.action_fcurves(action, slot):
+        if fc.data_path.rpartition(".")[2] in ("rotation_euler", "rotation_axis_angle"):
+            return False
+        for key in fc.keyframe_points:
+            if key.interpolation != "LINEAR" or abs(key.co[0] - round(key.co[0])) > 1e-4:
+                return False
+    return True
+
+
+def strip_action(obj, action, slot, source_frames, warp_source_times, fps):
+    """The action an NLA strip must play so that its animated time gives retime's poses: the action
+    itself when Blender interpolates it as retime does, else a copy keyed on every source frame and on
+    every in-between source frame the timing curve visits. Returns (action, slot, whether a copy)."""
+    if interpolates_like_retime(action, slot):
+        return action, slot, False
+    n = len(source_frames)
+    i0, _, w = source_positions(warp_source_times, fps, n)
+    visited = []  # Blender merges keys closer than 0.01 frames: keep the visited frames that far apart
+    for u in np.unique(i0 + w):
+        if not visited or u - visited[-1] >= KEY_GAP:
+            visited.append(u)
+    whole = np.arange(n, dtype=float)
+    nearest = np.abs(whole[:, None] - np.array(visited)[None]).min(axis=1)
+    at = np.sort(np.concatenate([visited, whole[nearest >= KEY_GAP]]))
+    k0 = np.minimum(np.floor(at).astype(int), n - 1)
+    positions = (k0, np.minimum(k0 + 1, n - 1), at - k0)
+    copy, copy_slot = resample(obj, action, slot, source_frames, positions, source_frames[0] + at,
+                               f"{action.name} (retime keys)")
+    return copy, copy_slot, True
 
 
 def nla_strip(obj, action, slot, source_frames, warp_source_times, fps, name):
     """Push ``action`` into a new NLA track as a strip that plays it through the warp: ``use_animated_time``
     with the ``strip_time`` F-curve keyed at every output frame (linear keys the animator can reshape in
-    the Graph Editor). The action itself is not changed; it is taken off the active slot so that the
-    strip plays. Returns the strip."""
+    the Graph Editor). ``action`` is the one to play (see :func:`strip_action`); the active action is taken
+    off the object so that the strip plays. Returns the strip."""
     adt = obj.animation_data
     start, end = float(source_frames[0]), float(source_frames[-1])
     n_out = len(warp_source_times)
@@ -128,7 +170,8 @@ def nla_strip(obj, action, slot, source_frames, warp_source_times, fps, name):
         keys.remove(keys[0], fast=True)
     keys.add(n_out)
     frames = start + np.arange(n_out, dtype=float)
-    keys.foreach_set("co", np.column_stack([frames, start + np.asarray(warp_source_times) * fps]).astype(np.float32).ravel())
+    i0, _, w = source_positions(warp_source_times, fps, len(source_frames))  # the frames strip_action keyed
+    keys.foreach_set("co", np.column_stack([frames, start + i0 + w]).astype(np.float32).ravel())
     keys.foreach_set("interpolation", np.full(n_out, armature.LINEAR, dtype=np.int32))
     curve.update()
     adt.action = None

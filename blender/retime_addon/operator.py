@@ -151,8 +151,13 @@ class Job:
             armature.assign_action(self.obj, new, slot)
             where = f"baked to action {new.name!r}"
         else:
-            strip = apply.nla_strip(self.obj, self.action, self.slot, frames, source_times, self.fps, label)
+            action, slot, copied = apply.strip_action(self.obj, self.action, self.slot, frames, source_times, self.fps)
+            strip = apply.nla_strip(self.obj, action, slot, frames, source_times, self.fps, label)
+            self.action.use_fake_user = True
             where = f"NLA strip {strip.name!r} (strip time keyed from the timing curve)"
+            if copied:
+                where += (f" playing {action.name!r}, the action keyed also between frames (its Euler or "
+                          "non-linear keys blend otherwise than retime's slerp)")
         scene = context.scene
         if scene.frame_start == self.start and self.end <= scene.frame_end <= self.end + 1:  # the clip's range
             scene.frame_end = self.start + n_out - 1

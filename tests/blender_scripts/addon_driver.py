@@ -131,7 +131,7 @@ if __name__ == "__main__":
         "bl_options": sorted(op.bl_options),
         "panels": sorted(f"{p.bl_space_type}/{p.bl_region_type}" for p in bpy.types.Panel.__subclasses__()
                          if p.__module__.startswith(__package_name__)),
-        "properties": sorted(op.bl_rna.properties.keys()),
+        "properties": sorted(bpy.ops.retime.retime.get_rna_type().properties.keys()),
         "preferences": bpy.context.preferences.addons[__package_name__].preferences is not None,
     }
     with open(results_path, "w") as f:
