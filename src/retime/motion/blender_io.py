@@ -41,6 +41,10 @@ def _venv_python(venv: Path) -> Path:
     return venv / ("Scripts/python.exe" if os.name == "nt" else "bin/python")
 
 
+def _venv_places():
+    return [Path.cwd() / ".venv-bpy", Path(__file__).resolve().parents[3] / ".venv-bpy"]
+
+
 @functools.lru_cache(maxsize=1)
 def bpy_command() -> tuple[str, ...] | None:
     """The command that runs the bridge script with ``bpy`` (arguments follow), or None (see the module
@@ -50,7 +54,7 @@ def bpy_command() -> tuple[str, ...] | None:
         if not Path(given).is_file():
             raise RetimeError(f"RETIME_BPY_PYTHON={given}: no such file; point it at a Python with bpy installed")
         return (given, str(BRIDGE))
-    for venv in (Path.cwd() / ".venv-bpy", Path(__file__).resolve().parents[3] / ".venv-bpy"):
+    for venv in _venv_places():
         if _venv_python(venv).is_file():
             return (str(_venv_python(venv)), str(BRIDGE))
     if importlib.util.find_spec("bpy") is not None:
