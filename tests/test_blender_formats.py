@@ -158,7 +158,7 @@ def test_without_bpy_one_line(monkeypatch, tmp_path, capsys):
     (tmp_path / "a.glb").write_bytes(b"glTF")
     try:
         assert main(["info", str(tmp_path / "a.glb")]) == 2
-        code = main(["convert", str(bundled_path("16_06.amc")), str(tmp_path / "out.fbx")])
+        code = main(["physics", str(bundled_path("16_06.amc")), "-o", str(tmp_path / "out.fbx")])  # before any work
     finally:
         blender_io.bpy_command.cache_clear()
     assert code == 2

@@ -213,7 +213,10 @@ class Job:
         return out
 
 
-def _unexpected(error):
+def _one_line(error):
+    """What went wrong, for the report; a bug's traceback goes to the system console only."""
+    if isinstance(error, RetimeAddonError):
+        return str(error)
     traceback.print_exc()
     return f"unexpected {type(error).__name__}: {error} (details in the system console; please report it)"
 
@@ -254,8 +257,8 @@ class RETIME_OT_retime(bpy.types.Operator):
     def execute(self, context):
         try:
             job = Job(context, self)
-        except RetimeAddonError as e:
-            return self._fail(str(e))
+        except Exception as e:
+            return self._fail(_one_line(e))
         try:
             wm = context.window_manager
             wm.progress_begin(0, 100)
@@ -266,10 +269,8 @@ class RETIME_OT_retime(bpy.types.Operator):
                 time.sleep(0.05)
             wm.progress_update(95)
             summary = job.finish(context)
-        except RetimeAddonError as e:
-            return self._fail(str(e))
-        except Exception as e:  # a bug: the console gets the traceback, the user one line
-            return self._fail(_unexpected(e))
+        except Exception as e:
+            return self._fail(_one_line(e))
         finally:
             context.window_manager.progress_end()
             job.cleanup()
@@ -282,11 +283,11 @@ class RETIME_OT_retime(bpy.types.Operator):
         try:
             self._job = Job(context, self)
             self._job.start_retime(context)
-        except RetimeAddonError as e:
+        except Exception as e:
             if self._job is not None:
                 self._job.cleanup()
             self._job = None
-            return self._fail(str(e))
+            return self._fail(_one_line(e))
         wm = context.window_manager
         self._timer = wm.event_timer_add(0.2, window=context.window)
         wm.progress_begin(0, 100)
@@ -307,9 +308,9 @@ class RETIME_OT_retime(bpy.types.Operator):
             return {"RUNNING_MODAL"}
         try:
             summary = job.finish(context)
-        except (RetimeAddonError, Exception) as e:
+        except Exception as e:
             self._end(context)
-            return self._fail(str(e) if isinstance(e, RetimeAddonError) else _unexpected(e))
+            return self._fail(_one_line(e))
         self._end(context)
         self.report({"INFO"}, summary)
         return {"FINISHED"}

@@ -8,6 +8,7 @@ from pathlib import Path
 from ..errors import RetimeError
 from ..io_util import check_not_input, check_outputs
 from ..motion import WRITABLE, load_motion, save_motion
+from ..motion.blender_io import SCENE_SUFFIXES, require_bpy
 from ..warp import TimingCurve, scale_warp, snap_duration
 
 
@@ -115,6 +116,8 @@ def check_output(args, suffixes=WRITABLE):
     given on the command line, not another output (see :func:`retime.io_util.check_outputs`)."""
     if Path(args.output).suffix.lower() not in suffixes:
         raise RetimeError(f"{args.output}: output must end in {' or '.join(suffixes)}")
+    if Path(args.output).suffix.lower() in SCENE_SUFFIXES:
+        require_bpy(args.output)  # before the (slow) retiming
     if getattr(args, "warp", None) and Path(args.warp).suffix.lower() != ".csv":
         raise RetimeError(f"{args.warp}: the warp file must end in .csv")
     check_outputs([getattr(args, k, None) for k in OUTPUT_OPTIONS], [getattr(args, k, None) for k in INPUT_OPTIONS])

@@ -65,10 +65,16 @@ def bpy_command() -> tuple[str, ...] | None:
     return None
 
 
-def _run_bridge(path, *args):
+def require_bpy(path):
+    """The bridge's command, or the one line saying what to install (before any work is done)."""
     command = bpy_command()
     if command is None:
         raise FormatError(path, f"reading and writing {Path(path).suffix.lower()} files {INSTALL_HINT}")
+    return command
+
+
+def _run_bridge(path, *args):
+    command = require_bpy(path)
     try:
         done = subprocess.run([*command, *map(str, args)], capture_output=True, text=True, errors="replace")
     except OSError as e:
