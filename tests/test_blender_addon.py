@@ -18,6 +18,7 @@ from _blender_support import (SHARED_BVH, TOLERANCE, blender_env, build_addon, j
 from retime.data import bundled_path
 
 HALF = {"scale": 0.5}
+MOVED = {"location": [1.0, -2.0, 0.5], "rotation_euler": [0.0, 0.0, 1.2], "scale": [2.5, 2.5, 2.5]}
 # name: (operator keywords, how the BVH is imported, extra CLI arguments the same request must give)
 SUCCESS = {
     "linear_bake": ({"method": "linear", "apply": "BAKE", **HALF}, {}),
@@ -29,6 +30,8 @@ SUCCESS = {
     "physics_nla": ({"method": "physics", "apply": "NLA", **HALF}, {}),
     "physics_options": ({"method": "physics", "apply": "BAKE", **HALF, "gravity_scale": 0.5, "mass": "lfemur=3"}, {}),
     "linear_markers": ({"method": "linear", "apply": "NLA", "duration": 2.0}, {"markers": [[150, "96"], [300, "->180"]]}),
+    "moved_object_bake": ({"method": "guided", "apply": "BAKE", **HALF}, {"transform": MOVED}),
+    "moved_object_nla": ({"method": "linear", "apply": "NLA", "scale": 0.7}, {"transform": MOVED}),
 }
 MIXAMO = {  # ../shared's Mixamo-derived rigs (Adobe's terms: used from ../shared, not copied here)
     "mixamo_bake": ("Gangnam Style.bvh", {"method": "physics", "apply": "BAKE", **HALF}),
@@ -63,7 +66,8 @@ def played(tmp_path_factory):
     cases = []
     for name, (op, how) in SUCCESS.items():
         case = {"name": name, "bvh": str(tmp / "16_06.bvh"), "op": {**op, "exchange_folder": str(tmp / name)},
-                "rotate_mode": how.get("rotate_mode", "NATIVE"), "markers": how.get("markers", [])}
+                "rotate_mode": how.get("rotate_mode", "NATIVE"), "markers": how.get("markers", []),
+                "transform": how.get("transform", {})}
         if how.get("reference"):
             case["reference_bvh"] = str(tmp / "16_03.bvh")
         cases.append(case)

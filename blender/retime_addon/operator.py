@@ -53,6 +53,11 @@ def marker_keytimes(scene, start, end, fps):
     return keys
 
 
+def _typed(value):
+    """A float property as the user typed it: Blender keeps them in single precision (0.7 is 0.699999988)."""
+    return f"{value:.7g}"
+
+
 def _output_frames(method, duration, scale, n_source, fps):
     """The output's frame count when the duration is set (None when the method chooses it)."""
     if scale > 0:
@@ -121,9 +126,9 @@ class Job:
                 "--warp", os.path.join(self.folder, "warp.csv")]
         p = self.props
         if p.duration > 0:
-            argv += ["--duration", repr(p.duration)]
+            argv += ["--duration", _typed(p.duration)]
         elif p.scale > 0:
-            argv += ["--scale", repr(p.scale)]
+            argv += ["--scale", _typed(p.scale)]
         for src, dst in self.keytimes:
             argv += ["--keytime", f"{src!r}={dst!r}"]
         if self.reference is not None:
@@ -134,7 +139,7 @@ class Job:
             argv += ["--reference", reference]
         if p.method == "physics":
             if abs(p.gravity_scale - 1.0) > 1e-9:
-                argv += ["--gravity-scale", repr(p.gravity_scale)]
+                argv += ["--gravity-scale", _typed(p.gravity_scale)]
             argv += [a for seg in self._mass_factors() for a in ("--mass", seg)]
         self.run = Run(argv, self.folder)
 

@@ -2,7 +2,8 @@
 one Blender process for all of them. ``python addon_driver.py ADDON.zip CASES.json RESULTS.json``
 
 Each case: {"name", "bvh", "op": operator keywords, "markers": [[frame, name], ...], "select": "armature" |
-"none" | "mesh", "drop_action": bool, "env": {variable: value or null}}. The result per case: "status"
+"none" | "mesh", "drop_action": bool, "env": {variable: value or null}, "transform": {object property:
+value}, "rotate_mode", "reference_bvh"}. The result per case: "status"
 (the operator's return or "RuntimeError"), "error" (the report of a failed call), and for a success an
 .npz beside RESULTS.json with the bones' world head positions on every output frame ("heads", Blender's
 axes), their "names", the output "frames", and for an NLA strip the strip-time keys ("strip_time").
@@ -33,6 +34,8 @@ def setup(case):
     bpy.ops.import_anim.bvh(filepath=case["bvh"], update_scene_fps=True, update_scene_duration=True,
                             rotate_mode=case.get("rotate_mode", "NATIVE"))
     arm = bpy.context.active_object
+    for prop, value in case.get("transform", {}).items():  # an armature object moved, turned and scaled
+        setattr(arm, prop, value)
     for frame, name in case.get("markers", []):
         bpy.context.scene.timeline_markers.new(name, frame=frame)
     if case.get("drop_action"):
