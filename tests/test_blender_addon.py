@@ -32,6 +32,8 @@ SUCCESS = {
     "linear_markers": ({"method": "linear", "apply": "NLA", "duration": 2.0}, {"markers": [[150, "96"], [300, "->180"]]}),
     "moved_object_bake": ({"method": "guided", "apply": "BAKE", **HALF}, {"transform": MOVED}),
     "moved_object_nla": ({"method": "linear", "apply": "NLA", "scale": 0.7}, {"transform": MOVED}),
+    "fbx_character_nla": ({"method": "physics", "apply": "NLA", **HALF}, {"file": "jump.fbx"}),
+    "fbx_character_bake": ({"method": "guided", "apply": "BAKE", **HALF}, {"file": "jump.fbx"}),
 }
 MIXAMO = {  # ../shared's Mixamo-derived rigs (Adobe's terms: used from ../shared, not copied here)
     "mixamo_bake": ("Gangnam Style.bvh", {"method": "physics", "apply": "BAKE", **HALF}),
@@ -63,9 +65,10 @@ def played(tmp_path_factory):
     code, _, err = run_retime("convert", bundled_path("16_03.amc"), tmp / "16_03.bvh")
     assert code == 0, err
     exe = retime_wrapper(tmp)
+    run_bpy("make_character.py", tmp / "16_06.bvh", tmp / "jump.fbx", env=blender_env(tmp))
     cases = []
     for name, (op, how) in SUCCESS.items():
-        case = {"name": name, "bvh": str(tmp / "16_06.bvh"), "op": {**op, "exchange_folder": str(tmp / name)},
+        case = {"name": name, "bvh": str(tmp / how.get("file", "16_06.bvh")), "op": {**op, "exchange_folder": str(tmp / name)},
                 "rotate_mode": how.get("rotate_mode", "NATIVE"), "markers": how.get("markers", []),
                 "transform": how.get("transform", {})}
         if how.get("reference"):
@@ -125,6 +128,10 @@ def check_against_cli(played, name, op, markers=()):
     assert error < TOLERANCE, f"{name}: bones {error:.2e} of the body height away from the CLI's result"
     if op["apply"] == "NLA":
         assert result["strip_use_animated_time"] and result["action"] is None
+        # the strip plays the action itself where Blender interpolates it as retime does (linear quaternion
+        # keys: an FBX's, or a BVH imported with quaternions), else a copy keyed between frames too
+        plays_original = name.startswith(("fbx", "guided"))
+        assert result["strip_plays_original"] == plays_original
         keys = np.load(tmp / f"{name}.strip.npy")
         fps = motion.fps
         np.testing.assert_allclose(keys[:, 0], 1 + warp[:, 0] * fps, atol=1e-4)

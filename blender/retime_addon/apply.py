@@ -111,13 +111,27 @@ def bake(obj, action, slot, source_frames, warp_source_times, fps, name):
     return resample(obj, action, slot, source_frames, positions, out_frames, name)
 
 
-def interpolates_like_retime(action, slot):
+def _plays(owner, prop):
+    """Whether a rotation property is the one its owner's rotation mode uses."""
+    mode = getattr(owner, "rotation_mode", "XYZ")
+    return {"rotation_quaternion": mode == "QUATERNION", "rotation_axis_angle": mode == "AXIS_ANGLE"}.get(
+        prop, mode not in ("QUATERNION", "AXIS_ANGLE"))
+
+
+def interpolates_like_retime(obj, action, slot):
     """Whether Blender's own evaluation of ``action`` between frames plays retime's poses: keys on whole
-    frames, linear, rotations as quaternions (Blender normalizes their linear blend: within 1e-6 of a
-    slerp at mocap rates). Euler angles blended linearly are another rotation than the slerp."""
+    frames, linear, the rotations that play as quaternions (Blender normalizes their linear blend: within
+    1e-6 of a slerp at mocap rates). Euler angles blended linearly are another rotation than the slerp,
+    unless a single one of them varies (a turn about one fixed axis)."""
+    varying = {}
     for fc in armature.action_fcurves(action, slot):
-        if fc.data_path.rpartition(".")[2] in ("rotation_euler", "rotation_axis_angle"):
-            return False
+        owner, prop = _owner(obj, fc.data_path)
+        if prop in ("rotation_euler", "rotation_axis_angle") and (owner is None or _plays(owner, prop)):
+            values = [k.co[1] for k in fc.keyframe_points]
+            if values and max(values) - min(values) > 1e-9:
+                varying[fc.data_path] = varying.get(fc.data_path, 0) + 1
+                if varying[fc.data_path] > 1:
+                    return False
         for key in fc.keyframe_points:
             if key.interpolation != "LINEAR" or abs(key.co[0] - round(key.co[0])) > 1e-4:
                 return False
@@ -128,7 +142,7 @@ def strip_action(obj, action, slot, source_frames, warp_source_times, fps):
     """The action an NLA strip must play so that its animated time gives retime's poses: the action
     itself when Blender interpolates it as retime does, else a copy keyed on every source frame and on
     every in-between source frame the timing curve visits. Returns (action, slot, whether a copy)."""
-    if interpolates_like_retime(action, slot):
+    if interpolates_like_retime(obj, action, slot):
         return action, slot, False
     n = len(source_frames)
     i0, _, w = source_positions(warp_source_times, fps, n)

@@ -31,9 +31,17 @@ def setup(case):
         reference = other.animation_data.action
         reference.name, reference.use_fake_user = "reference", True
         bpy.data.objects.remove(other)
-    bpy.ops.import_anim.bvh(filepath=case["bvh"], update_scene_fps=True, update_scene_duration=True,
-                            rotate_mode=case.get("rotate_mode", "NATIVE"))
-    arm = bpy.context.active_object
+    if case["bvh"].endswith(".fbx"):  # a character as FBX brings it: object transform, quaternions
+        bpy.ops.import_scene.fbx(filepath=case["bvh"])
+        arm = next(o for o in bpy.context.scene.objects if o.type == "ARMATURE")
+        bpy.context.view_layer.objects.active = arm
+        arm.select_set(True)
+        start, end = arm.animation_data.action.frame_range
+        bpy.context.scene.frame_start, bpy.context.scene.frame_end = int(start), int(end)
+    else:
+        bpy.ops.import_anim.bvh(filepath=case["bvh"], update_scene_fps=True, update_scene_duration=True,
+                                rotate_mode=case.get("rotate_mode", "NATIVE"))
+        arm = bpy.context.active_object
     for prop, value in case.get("transform", {}).items():  # an armature object moved, turned and scaled
         setattr(arm, prop, value)
     for frame, name in case.get("markers", []):
@@ -52,8 +60,7 @@ def setup(case):
     return arm
 
 
-def heads(arm, frames):
-    names = [b.name for b in arm.pose.bones]
+def heads(arm, names, frames):
     out = np.empty((len(frames), len(names), 3))
     for k, f in enumerate(frames):
         bpy.context.scene.frame_set(int(f))
@@ -61,7 +68,7 @@ def heads(arm, frames):
         mw = ev.matrix_world
         for j, n in enumerate(names):
             out[k, j] = mw @ ev.pose.bones[n].head
-    return names, out
+    return out
 
 
 def play(case, folder):
@@ -90,8 +97,10 @@ def play(case, folder):
             np.save(os.path.join(folder, case["name"] + ".strip.npy"), np.array([tuple(k.co) for k in keys]))
         result["original_untouched"] = _keys(original) == original_keys
         result["action"] = adt.action.name if adt.action else None
+        result["strip_plays_original"] = bool(adt.nla_tracks) and adt.nla_tracks[-1].strips[0].action == original
         frames = list(range(start, end + 1))
-        names, positions = heads(arm, frames)
+        names = [b.name for b in arm.pose.bones]
+        positions = heads(arm, names, frames)
         np.savez(os.path.join(folder, case["name"] + ".npz"), heads=positions, names=np.array(names),
                  frames=np.array(frames))
         return result
