@@ -7,12 +7,13 @@ from pathlib import Path
 
 from ..errors import RetimeError
 from ..io_util import check_not_input, check_outputs
-from ..motion import load_motion, save_bvh
+from ..motion import WRITABLE, load_motion, save_motion
+from ..motion.blender_io import SCENE_SUFFIXES, require_bpy
 from ..warp import TimingCurve, scale_warp, snap_duration
 
 
 def add_motion_args(p):
-    p.add_argument("motion", metavar="MOTION", help="input motion (.bvh, or .amc with its .asf beside it)")
+    p.add_argument("motion", metavar="MOTION", help="input motion (.bvh; .amc with its .asf beside it; .fbx, .glb or .gltf with Blender's bpy)")
     p.add_argument("--asf", metavar="SKELETON.asf", help="skeleton for an .amc file (default: X.asf beside X_NN.amc)")
     p.add_argument("--fps", type=positive_float, metavar="HZ",
                    help="input frame rate (AMC files carry none: default 120 Hz; overrides a BVH's Frame Time)")
@@ -55,7 +56,9 @@ def length_units(text):
 
 
 def add_output_args(p):
-    p.add_argument("-o", "--output", required=True, metavar="OUT.bvh", help="retimed motion to write (BVH)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.bvh",
+                   help="retimed motion to write: .bvh, or .fbx, .glb, .gltf with Blender's bpy (an FBX or glTF input "
+                        "keeps its meshes and materials)")
     p.add_argument("--warp", metavar="WARP.csv", help="also write the timing curve (output_time,source_time per output frame)")
 
 
@@ -108,11 +111,13 @@ OUTPUT_OPTIONS = ("output", "warp", "report", "write_body")  # what a motion com
 INPUT_OPTIONS = ("motion", "asf", "reference", "body", "contacts")  # what it may read
 
 
-def check_output(args, suffixes=(".bvh",)):
+def check_output(args, suffixes=WRITABLE):
     """Every output of a motion command, before any work: its suffix, its folder, not an input
     given on the command line, not another output (see :func:`retime.io_util.check_outputs`)."""
     if Path(args.output).suffix.lower() not in suffixes:
         raise RetimeError(f"{args.output}: output must end in {' or '.join(suffixes)}")
+    if Path(args.output).suffix.lower() in SCENE_SUFFIXES:
+        require_bpy(args.output)  # before the (slow) retiming
     if getattr(args, "warp", None) and Path(args.warp).suffix.lower() != ".csv":
         raise RetimeError(f"{args.warp}: the warp file must end in .csv")
     check_outputs([getattr(args, k, None) for k in OUTPUT_OPTIONS], [getattr(args, k, None) for k in INPUT_OPTIONS])
@@ -136,7 +141,7 @@ def target_duration(args, motion):
 
 
 def write_outputs(args, motion, curve: TimingCurve, retimed):
-    save_bvh(retimed, args.output)
+    save_motion(retimed, args.output, source=args.motion)
     if args.warp:
         curve.to_csv(args.warp, retimed.fps)
     print(f"wrote {args.output}: {retimed.n_frames} frames, {retimed.duration:.3f} s "

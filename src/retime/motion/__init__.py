@@ -5,17 +5,19 @@ from pathlib import Path
 from ..errors import FormatError, RetimeError
 from ..limits import check_fps, check_memory
 from .asf import read_amc, read_asf
+from .blender_io import SCENE_SUFFIXES, read_scene, write_scene
 from .bvh import read_bvh, write_bvh
 from .frame import detect_frame
 from .fk import end_site_positions, forward_kinematics
 from .model import Motion, Skeleton
 from .quat import slerp
 
-READABLE = (".bvh", ".amc")
+READABLE = (".bvh", ".amc", *SCENE_SUFFIXES)
+WRITABLE = (".bvh", *SCENE_SUFFIXES)
 
 
 def load_motion(path, fps=None, asf=None, up=None, units=None, angles=None) -> Motion:
-    """Load a BVH or AMC file. AMC files find ``X.asf`` beside ``X_NN.amc`` unless ``asf`` is given;
+    """Load a BVH, AMC, FBX or glTF file (the last two through Blender, :mod:`.blender_io`). AMC files find ``X.asf`` beside ``X_NN.amc`` unless ``asf`` is given;
     they carry no frame rate, so ``fps`` defaults to CMU's 120 Hz.
 
     The up axis and length unit are detected from the motion (:mod:`.frame`) and recorded on the
@@ -34,9 +36,14 @@ def load_motion(path, fps=None, asf=None, up=None, units=None, angles=None) -> M
         return with_detected_frame(path, read_bvh(path, fps=fps, angles=angles), up, units, None)
     if suffix == ".amc":
         return with_detected_frame(path, read_amc(path, asf=asf, fps=fps), up, units, 1.0)
+    if suffix in SCENE_SUFFIXES:
+        motion, metres_per_unit = read_scene(path)
+        if fps is not None:
+            motion = motion.replace(fps=fps)
+        return with_detected_frame(path, motion, up or "+y", units, metres_per_unit)
     if suffix == ".asf":
         raise FormatError(path, "is a skeleton without motion; load the .amc file (it finds this .asf)")
-    raise FormatError(path, f"unknown motion format {suffix or '(no extension)'!r}; retime reads .bvh and .amc")
+    raise FormatError(path, f"unknown motion format {suffix or '(no extension)'!r}; retime reads .bvh, .amc, .fbx, .glb and .gltf")
 
 
 def _check_rate(path, fps):
@@ -68,5 +75,16 @@ def save_bvh(motion: Motion, path) -> None:
     write_bvh(motion, path)
 
 
-__all__ = ["Motion", "Skeleton", "load_motion", "save_bvh", "forward_kinematics", "end_site_positions",
+def save_motion(motion: Motion, path, source=None) -> None:
+    """Write ``motion`` as BVH, FBX or glTF by ``path``'s suffix, atomically. FBX and glTF go through
+    Blender (:func:`.blender_io.write_scene`): an FBX or glTF ``source`` keeps its meshes, skins and materials."""
+    suffix = Path(path).suffix.lower()
+    if suffix == ".bvh":
+        return write_bvh(motion, path)
+    if suffix in SCENE_SUFFIXES:
+        return write_scene(motion, path, source)
+    raise FormatError(path, f"cannot write {suffix or '(no extension)'!r}; retime writes {', '.join(WRITABLE)}")
+
+
+__all__ = ["Motion", "Skeleton", "load_motion", "save_bvh", "save_motion", "READABLE", "WRITABLE", "forward_kinematics", "end_site_positions",
            "read_bvh", "write_bvh", "read_amc", "read_asf", "slerp"]

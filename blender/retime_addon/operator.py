@@ -1,0 +1,341 @@
+"""The Retime operator: the active armature's action -> BVH -> ``retime METHOD`` -> warp CSV -> a baked
+action or an NLA strip. Scripts call it directly (``bpy.ops.retime.retime(method='physics', scale=0.5,
+apply='BAKE')``, runs to the end); from the panel it runs modally, retime working in the background while
+the status bar shows the stage, Esc cancelling."""
+import os
+import re
+import shutil
+import tempfile
+import time
+import traceback
+
+import bpy
+import numpy as np
+
+from . import apply, armature
+from .runner import RetimeAddonError, Run, retime_executable
+
+METHODS = [
+    ("linear", "Linear", "Uniform, or piecewise linear through the keytimes"),
+    ("guided", "Guided", "Keep the local velocities of a reference action (Hsu et al. 2007; default: the action itself)"),
+    ("physics", "Physics", "Keep the motion physically plausible (McCann et al. 2006)"),
+]
+APPLY_MODES = [
+    ("BAKE", "Bake", "A new action with keys at every output frame; the original action is kept untouched"),
+    ("NLA", "NLA Strip", "A strip whose animated strip time follows the timing curve, editable in the Graph Editor"),
+]
+MARKER_HELP = ("A marker at a source frame named with an output frame (e.g. '96') makes that source frame play "
+               "at that output frame")
+KEYTIME_MARKER = re.compile(r"^\s*(?:->|=|@|\u2192)?\s*(-?\d+(?:\.\d+)?)\s*$")  # "96", "->96", "@96"
+
+
+def preferences(context):
+    addon = context.preferences.addons.get(__package__)
+    return addon.preferences if addon else None
+
+
+def marker_keytimes(scene, start, end, fps):
+    """(source s, output s) for each marker named with an output frame: a marker at source frame F named
+    "N" says that frame F must play at output frame N (frames counted from the action's first frame)."""
+    keys = []
+    for marker in sorted(scene.timeline_markers, key=lambda m: m.frame):
+        match = KEYTIME_MARKER.match(marker.name)
+        if not match:
+            continue
+        target = float(match.group(1))
+        if not start < marker.frame < end:
+            raise RetimeAddonError(f"marker {marker.name!r} at frame {marker.frame} is outside the action's frames "
+                                   f"{start}-{end}; move it inside (the first and last frames are fixed)")
+        if target <= start:
+            raise RetimeAddonError(f"marker {marker.name!r} at frame {marker.frame} names output frame {target:g}, "
+                                   f"not after the first frame {start}")
+        keys.append(((marker.frame - start) / fps, (target - start) / fps))
+    return keys
+
+
+def _typed(value):
+    """A float property as the user typed it: Blender keeps them in single precision (0.7 is 0.699999988)."""
+    return f"{value:.7g}"
+
+
+def _output_frames(method, duration, scale, n_source, fps):
+    """The output's frame count when the duration is set (None when the method chooses it)."""
+    if scale > 0:
+        return int(np.floor((n_source - 1) * scale + 1e-6)) + 1
+    if duration > 0:
+        return max(1, int(round(duration * fps))) + 1
+    return n_source if method == "guided" else None
+
+
+class Job:
+    """One retime of one armature: export, run, apply; all state restored or cleaned on failure."""
+
+    def __init__(self, context, props):
+        self.props = props
+        scene = context.scene
+        obj = context.active_object
+        if obj is None:
+            raise RetimeAddonError("no active object: select the armature to retime")
+        if obj.type != "ARMATURE":
+            raise RetimeAddonError(f"the active object {obj.name!r} is a {obj.type.lower()}, not an armature: "
+                                   "select the armature to retime")
+        adt = obj.animation_data
+        if adt is not None and adt.use_tweak_mode:
+            raise RetimeAddonError(f"{obj.name!r} is in NLA tweak mode: leave it (Tab in the NLA editor) first")
+        if adt is None or adt.action is None:
+            raise RetimeAddonError(f"the armature {obj.name!r} has no action to retime: assign one in the Action Editor")
+        self.obj, self.action = obj, adt.action
+        self.slot = getattr(adt, "action_slot", None)
+        self.fps = scene.render.fps / scene.render.fps_base
+        self.start, self.end = (int(round(f)) for f in self.action.frame_range)
+        if self.end - self.start < 1:
+            raise RetimeAddonError(f"the action {self.action.name!r} has a single frame: there is no timing to change")
+        if props.duration > 0 and props.scale > 0:
+            raise RetimeAddonError("give a duration or a scale, not both (set the other to 0)")
+        self.n_source = self.end - self.start + 1
+        self.keytimes = marker_keytimes(scene, self.start, self.end, self.fps) if props.use_markers else []
+        n_out = _output_frames(props.method, props.duration, props.scale, self.n_source, self.fps)
+        for src, dst in self.keytimes:
+            if n_out is not None and not dst * self.fps < n_out - 1:
+                raise RetimeAddonError(f"a keytime marker names output frame {self.start + dst * self.fps:g}, past the "
+                                       f"output's last frame {self.start + n_out - 1}")
+        prefs = preferences(bpy.context)
+        self.executable = retime_executable(prefs.retime_path if prefs else "")
+        self.reference = None
+        if props.method == "guided" and props.reference:
+            self.reference = bpy.data.actions.get(props.reference)
+            if self.reference is None:
+                raise RetimeAddonError(f"no action named {props.reference!r} for the reference")
+        self.keep = bool(props.exchange_folder.strip())
+        if self.keep:
+            self.folder = bpy.path.abspath(props.exchange_folder.strip())
+            try:
+                os.makedirs(self.folder, exist_ok=True)
+            except OSError as e:
+                raise RetimeAddonError(f"cannot use the folder {self.folder} for retime's files: {e.strerror}") from None
+        else:
+            self.folder = tempfile.mkdtemp(prefix="retime-blender-")
+        self.run = None
+
+    # -- the stages ---------------------------------------------------------------------------------
+    def start_retime(self, context):
+        """Export the action (and the reference) as BVH and start ``retime``."""
+        source = os.path.join(self.folder, "source.bvh")
+        self.hierarchy = self._export(context, self.action, self.slot, (self.start, self.end), source)
+        argv = [self.executable, self.props.method, source, "-o", os.path.join(self.folder, "retimed.bvh"),
+                "--warp", os.path.join(self.folder, "warp.csv")]
+        p = self.props
+        if p.duration > 0:
+            argv += ["--duration", _typed(p.duration)]
+        elif p.scale > 0:
+            argv += ["--scale", _typed(p.scale)]
+        for src, dst in self.keytimes:
+            argv += ["--keytime", f"{src!r}={dst!r}"]
+        if self.reference is not None:
+            ref_slot = self._slot_for(self.reference)
+            frames = tuple(int(round(f)) for f in self.reference.frame_range)
+            reference = os.path.join(self.folder, "reference.bvh")
+            self._export(context, self.reference, ref_slot, frames, reference)
+            argv += ["--reference", reference]
+        if p.method == "physics":
+            if abs(p.gravity_scale - 1.0) > 1e-9:
+                argv += ["--gravity-scale", _typed(p.gravity_scale)]
+            argv += [a for seg in self._mass_factors() for a in ("--mass", seg)]
+        self.run = Run(argv, self.folder)
+
+    def finish(self, context):
+        """Read the warp and apply it; returns the one-line summary."""
+        said = self.run.result()
+        _, source_times = apply.read_warp(os.path.join(self.folder, "warp.csv"))
+        frames = np.arange(self.start, self.end + 1, dtype=float)
+        label = f"{self.action.name} ({self.props.method})"
+        n_out = len(source_times)
+        if self.props.apply == "BAKE":
+            new, slot = apply.bake(self.obj, self.action, self.slot, frames, source_times, self.fps, label)
+            self.action.use_fake_user = True  # kept when the file is saved, though nothing plays it now
+            armature.assign_action(self.obj, new, slot)
+            where = f"baked to action {new.name!r}"
+        else:
+            action, slot, copied = apply.strip_action(self.obj, self.action, self.slot, frames, source_times, self.fps)
+            strip = apply.nla_strip(self.obj, action, slot, frames, source_times, self.fps, label)
+            self.action.use_fake_user = True
+            where = f"NLA strip {strip.name!r} (strip time keyed from the timing curve)"
+            if copied:
+                where += (f" playing {action.name!r}, the action keyed also between frames (its Euler or "
+                          "non-linear keys blend otherwise than retime's slerp)")
+        scene = context.scene
+        if scene.frame_start == self.start and self.end <= scene.frame_end <= self.end + 1:  # the clip's range
+            scene.frame_end = self.start + n_out - 1
+        scene.frame_set(scene.frame_current)
+        summary = f"retimed {self.action.name!r} with {self.props.method}: {self.n_source} -> {n_out} frames, {where}"
+        return summary + (f"; {said}" if said and not said.startswith("wrote ") else "")
+
+    def cleanup(self):
+        if self.run is not None:
+            self.run.cancel()
+        if not self.keep:
+            shutil.rmtree(self.folder, ignore_errors=True)
+
+    # -- helpers -------------------------------------------------------------------------------------
+    def _export(self, context, action, slot, frames, path):
+        """The armature playing ``action`` alone (NLA muted) sampled at every frame, as BVH."""
+        adt, scene = self.obj.animation_data, context.scene
+        saved = adt.action, getattr(adt, "action_slot", None), adt.use_nla, scene.frame_current
+        try:
+            adt.use_nla = False
+            if action is not adt.action:
+                armature.assign_action(self.obj, action, slot)
+            hierarchy, poses, world = armature.sample_pose(context, self.obj, range(frames[0], frames[1] + 1))
+            text = armature.BvhPose(hierarchy, poses, world).text(self.fps)
+        except armature.ArmatureError as e:
+            raise RetimeAddonError(str(e)) from None
+        finally:
+            if adt.action is not saved[0]:
+                armature.assign_action(self.obj, saved[0], saved[1])
+            adt.use_nla = saved[2]
+            scene.frame_set(saved[3])
+        with open(path, "w", newline="\n") as f:
+            f.write(text)
+        return hierarchy
+
+    def _slot_for(self, action):
+        slots = getattr(action, "slots", None)
+        if not slots:
+            return None
+        return next((s for s in slots if s.target_id_type == "OBJECT"), slots[0])
+
+    def _mass_factors(self):
+        """'lfemur=10, rfemur=2' -> ['lfemur=10', 'rfemur=2'] with bone names as retime's BVH names them."""
+        out = []
+        names = dict(zip(self.hierarchy.names, self.hierarchy.bvh_names))
+        for item in filter(None, (s.strip() for s in self.props.mass.replace(";", ",").split(","))):
+            bone, sep, factor = item.rpartition("=")
+            if not sep or not bone.strip():
+                raise RetimeAddonError(f"mass factor {item!r} must look like BONE=FACTOR (e.g. lfemur=10)")
+            if bone.strip() not in names:
+                raise RetimeAddonError(f"mass factor {item!r}: the armature has no bone named {bone.strip()!r}")
+            out.append(f"{names[bone.strip()]}={factor.strip()}")
+        return out
+
+
+def _one_line(error):
+    """What went wrong, for the report; a bug's traceback goes to the system console only."""
+    if isinstance(error, RetimeAddonError):
+        return str(error)
+    traceback.print_exc()
+    return f"unexpected {type(error).__name__}: {error} (details in the system console; please report it)"
+
+
+class RETIME_OT_retime(bpy.types.Operator):
+    """Retime the active armature's action with the retime program"""
+
+    bl_idname = "retime.retime"
+    bl_label = "Retime"
+    bl_options = {"REGISTER", "UNDO"}
+
+    method: bpy.props.EnumProperty(name="Method", items=METHODS, default="linear")
+    duration: bpy.props.FloatProperty(name="Duration", description="Output duration in seconds (0: not set)",
+                                      min=0.0, default=0.0, unit="TIME_ABSOLUTE")
+    scale: bpy.props.FloatProperty(name="Scale", description="Output lasts this many times as long (0.5: twice as "
+                                   "fast; 0: not set)", min=0.0, default=0.0)
+    apply: bpy.props.EnumProperty(name="Apply", items=APPLY_MODES, default="BAKE")
+    use_markers: bpy.props.BoolProperty(name="Keytimes from Markers", default=True, description=MARKER_HELP)
+    reference: bpy.props.StringProperty(name="Reference", description="Guided: the action whose timing to imitate "
+                                        "(empty: the action itself)")
+    gravity_scale: bpy.props.FloatProperty(name="Gravity", description="Physics: gravity times this", default=1.0,
+                                           min=0.01, max=100.0)
+    mass: bpy.props.StringProperty(name="Mass Factors", description="Physics: BONE=FACTOR, comma separated "
+                                   "(e.g. lfemur=10)")
+
+    exchange_folder: bpy.props.StringProperty(
+        name="Keep Files In", subtype="DIR_PATH",
+        description="Keep the BVH, retime's output and the timing curve (warp.csv) in this folder, to rerun or "
+                    "inspect them (empty: a temporary folder, removed afterwards)")
+
+    _job = None
+    _timer = None
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None
+
+    def execute(self, context):
+        try:
+            job = Job(context, self)
+        except Exception as e:
+            return self._fail(_one_line(e))
+        try:
+            wm = context.window_manager
+            wm.progress_begin(0, 100)
+            wm.progress_update(5)
+            job.start_retime(context)
+            while not job.run.done():
+                wm.progress_update(min(90, 10 + int(job.run.elapsed)))
+                time.sleep(0.05)
+            wm.progress_update(95)
+            summary = job.finish(context)
+        except Exception as e:
+            return self._fail(_one_line(e))
+        finally:
+            context.window_manager.progress_end()
+            job.cleanup()
+        self.report({"INFO"}, summary)
+        return {"FINISHED"}
+
+    def invoke(self, context, event):
+        if context.window is None:
+            return self.execute(context)
+        try:
+            self._job = Job(context, self)
+            self._job.start_retime(context)
+        except Exception as e:
+            if self._job is not None:
+                self._job.cleanup()
+            self._job = None
+            return self._fail(_one_line(e))
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.2, window=context.window)
+        wm.progress_begin(0, 100)
+        wm.modal_handler_add(self)
+        self._status(context)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        job = self._job
+        if event.type == "ESC":
+            self._end(context)
+            self.report({"WARNING"}, "retime cancelled; nothing changed")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        if not job.run.done():
+            self._status(context)
+            return {"RUNNING_MODAL"}
+        try:
+            summary = job.finish(context)
+        except Exception as e:
+            self._end(context)
+            return self._fail(_one_line(e))
+        self._end(context)
+        self.report({"INFO"}, summary)
+        return {"FINISHED"}
+
+    def _status(self, context):
+        elapsed = self._job.run.elapsed
+        context.window_manager.progress_update(min(90, 10 + int(elapsed)))
+        if context.workspace is not None:
+            context.workspace.status_text_set(f"Retime: {self.method} running on {self._job.action.name!r}, "
+                                              f"{elapsed:.0f} s (Esc cancels)")
+
+    def _end(self, context):
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        self._job.cleanup()
+
+    def _fail(self, message):
+        self.report({"ERROR"}, "Retime: " + " ".join(message.split()))  # one line, whatever retime printed
+        return {"CANCELLED"}

@@ -1,0 +1,309 @@
+"""An armature's animation in BVH's convention, and back to keys (runs inside Blender: bpy, mathutils, NumPy).
+
+Shared by retime's FBX/glTF bridge and the Blender add-on (which ships a copy, see ``blender/build.py``).
+
+BVH's convention here: Y up (the inverse of Blender's BVH importer, which maps BVH's Y to Blender's Z),
+the rest pose has every local rotation the identity, a joint's local rotation is expressed in
+world-aligned axes rather than the bone's own, offsets and positions are in scene units. The object's
+world transform at the first frame is folded in, so a scaled or rotated armature object (an FBX's
+0.01) comes out at the size and orientation the viewport shows. Joints whose head moves away from
+where the rest pose puts it get position channels, so translating bones survive the trip.
+"""
+import re
+
+import numpy as np
+
+# Blender's Z-up world -> BVH's Y-up: (x, y, z) -> (x, z, -y)
+TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+ROOT_CHANNELS = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
+JOINT_CHANNELS = ROOT_CHANNELS[3:]
+LINEAR = 1  # the enum value of Keyframe.interpolation 'LINEAR', for foreach_set
+
+
+class ArmatureError(Exception):
+    """A problem with the armature or its animation, said in one line the user can act on."""
+
+
+def bvh_name(name: str) -> str:
+    """A bone name as a BVH joint name (BVH names cannot hold white space)."""
+    return re.sub(r"\s+", "_", name.strip()) or "_"
+
+
+class Hierarchy:
+    """An armature's bones in depth-first order (parents before children) with their rest matrices."""
+
+    def __init__(self, obj):
+        roots = [b for b in obj.data.bones if b.parent is None]
+        if not roots:
+            raise ArmatureError(f"armature {obj.name!r} has no bones")
+        if len(roots) > 1:
+            names = ", ".join(repr(b.name) for b in roots[:4]) + (", ..." if len(roots) > 4 else "")
+            raise ArmatureError(f"armature {obj.name!r} has {len(roots)} root bones ({names}); retime needs one "
+                                "hierarchy: parent them to a single root bone")
+        order, stack = [], [roots[0]]
+        while stack:
+            bone = stack.pop()
+            order.append(bone)
+            stack.extend(reversed(bone.children))
+        self.names = [b.name for b in order]
+        index = {n: i for i, n in enumerate(self.names)}
+        self.parents = np.array([index[b.parent.name] if b.parent else -1 for b in order], dtype=int)
+        self.bvh_names = _unique([bvh_name(n) for n in self.names])
+        self.rest = np.array([np.array(b.matrix_local, dtype=float) for b in order])  # (J, 4, 4) armature space
+        self.tails = np.array([np.array(b.tail_local, dtype=float) for b in order])
+        self.leaves = [j for j, b in enumerate(order) if not b.children]
+
+
+def _unique(names):
+    seen, out = {}, []
+    for n in names:
+        k = seen.get(n, 0)
+        seen[n] = k + 1
+        out.append(n if k == 0 else f"{n}.{k}")
+    return out
+
+
+def sample_pose(context, obj, frames):
+    """The evaluated pose at each scene frame: bone pose matrices in armature space (F, J, 4, 4) and the
+    object's world matrix (F, 4, 4). Moves the scene's current frame (the caller restores it)."""
+    hierarchy = Hierarchy(obj)
+    poses = np.empty((len(frames), len(hierarchy.names), 4, 4))
+    world = np.empty((len(frames), 4, 4))
+    scene = context.scene
+    for k, frame in enumerate(frames):
+        scene.frame_set(int(frame))
+        evaluated = obj.evaluated_get(context.evaluated_depsgraph_get())
+        world[k] = np.array(evaluated.matrix_world)
+        bones = evaluated.pose.bones
+        for j, name in enumerate(hierarchy.names):
+            poses[k, j] = np.array(bones[name].matrix)
+    return hierarchy, poses, world
+
+
+def _rotation(m):
+    """The rotation part of (..., 3, 3) matrices that may carry a uniform scale."""
+    return m / np.linalg.norm(m, axis=-2, keepdims=True)
+
+
+def _uniform_scale(m3):
+    s = np.linalg.norm(m3, axis=0)
+    if np.ptp(s) > 1e-4 * s.max():
+        raise ArmatureError(f"the armature object has a non-uniform scale {tuple(round(x, 4) for x in s)}; apply it "
+                            "(Object > Apply > Scale) first")
+    return float(s.mean())
+
+
+class BvhPose:
+    """An armature's animation in BVH's convention (see the module docstring)."""
+
+    def __init__(self, hierarchy, poses, world):
+        h, c = hierarchy, TO_Y_UP
+        self.hierarchy = h
+        scale = _uniform_scale(world[0, :3, :3])
+        r0 = _rotation(world[0, :3, :3])
+        rest_rot = _rotation(h.rest[:, :3, :3])
+        g_arm = _rotation(poses[..., :3, :3]) @ np.swapaxes(rest_rot, -1, -2)  # rotation from the rest pose
+        r_world = _rotation(world[:, :3, :3])
+        g_world = r_world[:, None] @ g_arm @ r0.T
+        heads = np.einsum("fab,fjb->fja", world[:, :3, :3], poses[..., :3, 3]) + world[:, None, :3, 3]
+        g = c @ g_world @ c.T  # (F, J, 3, 3) global rotations, Y up
+        heads = heads @ c.T
+        p = h.parents
+        rest_heads = (c @ (scale * r0) @ h.rest[:, :3, 3].T).T
+        self.offsets = rest_heads - np.where(p[:, None] >= 0, rest_heads[np.maximum(p, 0)], 0.0)
+        self.offsets[0] = 0.0  # the root's position channels carry its position
+        self.end_sites = {j: (c @ (scale * r0) @ (h.tails[j] - h.rest[j, :3, 3])) for j in h.leaves}
+        parent_g = np.where(p[None, :, None, None] >= 0, g[:, np.maximum(p, 0)], np.eye(3))
+        self.rotations = np.swapaxes(parent_g, -1, -2) @ g  # local rotations (F, J, 3, 3)
+        parent_heads = np.where(p[None, :, None] >= 0, heads[:, np.maximum(p, 0)], 0.0)
+        self.positions = np.einsum("fjba,fjb->fja", parent_g, heads - parent_heads)  # in the parent's axes
+        size = max(float(np.ptp(rest_heads, axis=0).max()), 1e-9)
+        drift = np.abs(self.positions - self.offsets[None]).max(axis=(0, 2))
+        self.translating = drift > 1e-5 * size
+        self.translating[0] = True
+
+    def channels(self, j):
+        return ROOT_CHANNELS if self.translating[j] else JOINT_CHANNELS
+
+    def text(self, fps: float) -> str:
+        """The BVH file: hierarchy, then one line of channel values per frame."""
+        h = self.hierarchy
+        out = ["HIERARCHY"]
+        children = {j: [int(c) for c in np.nonzero(h.parents == j)[0]] for j in range(len(h.names))}
+        stack = [("open", 0, 0)]
+        while stack:  # depth first without recursion: long chains must not hit Python's limit
+            what, j, depth = stack.pop()
+            ind = "\t" * depth
+            if what == "close":
+                if j in self.end_sites:
+                    out += [f"{ind}\tEnd Site", f"{ind}\t{{", f"{ind}\t\tOFFSET {_fmt(self.end_sites[j])}", f"{ind}\t}}"]
+                out.append(f"{ind}}}")
+                continue
+            out.append(f"{ind}{'ROOT' if j == 0 else 'JOINT'} {h.bvh_names[j]}")
+            out += [f"{ind}{{", f"{ind}\tOFFSET {_fmt(self.offsets[j])}",
+                    f"{ind}\tCHANNELS {len(self.channels(j))} {' '.join(self.channels(j))}"]
+            stack.append(("close", j, depth))
+            stack.extend(("open", c, depth + 1) for c in reversed(children[j]))
+        n_frames = self.rotations.shape[0]
+        out += ["MOTION", f"Frames: {n_frames}", f"Frame Time: {1.0 / fps:.10g}"]
+        columns = []
+        euler = np.rad2deg(euler_zxy(self.rotations))
+        for j in range(len(h.names)):
+            if self.translating[j]:
+                columns.append(self.positions[:, j])
+            columns.append(euler[:, j])
+        values = np.concatenate(columns, axis=1)
+        out += [" ".join(f"{v:.9g}" for v in row) for row in values]
+        return "\n".join(out) + "\n"
+
+
+def _fmt(v):
+    return " ".join(f"{float(x):.9g}" for x in v)
+
+
+def euler_zxy(m):
+    """Rotation matrices (F, J, 3, 3) -> BVH's 'Zrotation Xrotation Yrotation' angles (F, J, 3), radians,
+    R = Rz Rx Ry, unwrapped along the frames so that no angle jumps by a full turn."""
+    x = np.arcsin(np.clip(m[..., 2, 1], -1.0, 1.0))
+    z = np.arctan2(-m[..., 0, 1], m[..., 1, 1])
+    y = np.arctan2(-m[..., 2, 0], m[..., 2, 2])
+    return np.unwrap(np.stack([z, x, y], axis=-1), axis=0)
+
+
+def quat_xyzw_to_matrix(q):
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    x, y, z, w = np.moveaxis(q, -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=-1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=-1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1),
+    ], axis=-2)
+
+
+def bone_bases(hierarchy, world0, rotations, translations):
+    """The bones' local (basis) matrices (F, J, 4, 4) that make the armature, its object at ``world0``,
+    play BVH-convention poses: local rotations as quaternions (F, J, 4; x y z w) and translations (F, J, 3;
+    the offset or the position channels) of the joints in ``hierarchy`` order. The inverse of BvhPose."""
+    h, c = hierarchy, TO_Y_UP
+    local = quat_xyzw_to_matrix(np.asarray(rotations, dtype=float))
+    translations = np.asarray(translations, dtype=float)
+    n_frames, n_joints = local.shape[:2]
+    g = np.empty_like(local)
+    heads = np.empty((n_frames, n_joints, 3))
+    for j, p in enumerate(h.parents):  # forward kinematics, parents first
+        if p < 0:
+            g[:, j], heads[:, j] = local[:, j], translations[:, j]
+        else:
+            g[:, j] = g[:, p] @ local[:, j]
+            heads[:, j] = heads[:, p] + np.einsum("fab,fb->fa", g[:, p], translations[:, j])
+    scale = _uniform_scale(world0[:3, :3])
+    r0 = _rotation(world0[:3, :3])
+    g_arm = r0.T @ (c.T @ g @ c) @ r0  # back to Blender's axes, then to the armature's
+    heads_arm = ((heads @ c) - world0[:3, 3]) @ r0 / scale
+    pose = np.zeros((n_frames, n_joints, 4, 4))
+    pose[..., :3, :3] = g_arm @ _rotation(h.rest[:, :3, :3])
+    pose[..., :3, 3] = heads_arm
+    pose[..., 3, 3] = 1.0
+    rest_inv = np.linalg.inv(h.rest)
+    basis = np.empty_like(pose)
+    for j, p in enumerate(h.parents):
+        parent = pose[:, p] @ rest_inv[p] @ h.rest[j] if p >= 0 else np.broadcast_to(h.rest[j], pose[:, j].shape)
+        basis[:, j] = np.linalg.inv(parent) @ pose[:, j]
+    return basis
+
+
+# -- actions across Blender versions: 4.4 made actions layered (slots and channelbags); 5.0 dropped the old API
+
+def action_fcurves(action, slot=None):
+    """The F-curves an action plays on the slot (Blender 4.4+) or its F-curves (4.2, 4.3)."""
+    if action is None:
+        return []
+    if getattr(action, "is_action_layered", False):
+        from bpy_extras import anim_utils
+
+        slot = slot or (action.slots[0] if len(action.slots) else None)
+        bag = anim_utils.action_get_channelbag_for_slot(action, slot)
+        return list(bag.fcurves) if bag is not None else []
+    return list(action.fcurves)
+
+
+def new_action(obj, name):
+    """A new empty action for ``obj``: (action, slot or None, the F-curve collection to add curves to)."""
+    import bpy
+
+    action = bpy.data.actions.new(name)
+    if hasattr(action, "slots"):
+        from bpy_extras import anim_utils
+
+        slot = action.slots.new(obj.id_type, obj.name)
+        return action, slot, anim_utils.action_ensure_channelbag_for_slot(action, slot).fcurves
+    return action, None, action.fcurves
+
+
+def assign_action(obj, action, slot):
+    adt = obj.animation_data or obj.animation_data_create()
+    adt.action = action
+    if slot is not None:
+        adt.action_slot = slot
+
+
+def write_curve(fcurves, data_path, index, group, frames, values):
+    """A new F-curve keyed at every frame with linear interpolation."""
+    try:
+        fc = fcurves.new(data_path, index=index, group_name=group)  # 4.4+ channelbags
+    except TypeError:
+        fc = fcurves.new(data_path, index=index, action_group=group)
+    n = len(frames)
+    fc.keyframe_points.add(n)
+    fc.keyframe_points.foreach_set("co", np.column_stack([frames, values]).astype(np.float32).ravel())
+    fc.keyframe_points.foreach_set("interpolation", np.full(n, LINEAR, dtype=np.int32))
+    fc.update()
+    return fc
+
+
+def key_bone(fcurves, pose_bone, frames, locations, quaternions, scales=None):
+    """Key a bone at ``frames``: locations (F, 3), rotations as quaternions (F, 4; w x y z) written in the
+    bone's own rotation mode (quaternions kept on one hemisphere, Euler angles continuous), scales (F, 3)."""
+    from mathutils import Euler, Quaternion
+
+    name = pose_bone.name.replace("\\", "\\\\").replace('"', '\\"')
+    path = f'pose.bones["{name}"].'
+    q = np.array(quaternions, dtype=float)
+    for k in range(1, len(q)):  # the sign nearer the previous frame's: Blender interpolates the components
+        if np.dot(q[k], q[k - 1]) < 0:
+            q[k] = -q[k]
+    mode = pose_bone.rotation_mode
+    if mode == "QUATERNION":
+        rot_path, rot = "rotation_quaternion", q
+    elif mode == "AXIS_ANGLE":
+        rot = []
+        for w, x, y, z in q:
+            axis, angle = Quaternion((w, x, y, z)).to_axis_angle()
+            rot.append((angle, *axis))
+        rot_path, rot = "rotation_axis_angle", np.array(rot)
+    else:
+        rot, prev = [], Euler((0.0, 0.0, 0.0), mode)
+        for w, x, y, z in q:
+            prev = Quaternion((w, x, y, z)).to_euler(mode, prev)
+            rot.append(tuple(prev))
+        rot_path, rot = "rotation_euler", np.array(rot)
+    for i in range(3):
+        write_curve(fcurves, path + "location", i, pose_bone.name, frames, locations[:, i])
+    for i in range(rot.shape[1]):
+        write_curve(fcurves, path + rot_path, i, pose_bone.name, frames, rot[:, i])
+    if scales is not None:
+        for i in range(3):
+            write_curve(fcurves, path + "scale", i, pose_bone.name, frames, scales[:, i])
+
+
+def decompose(basis):
+    """Basis matrices (F, 4, 4) -> locations (F, 3), quaternions (F, 4; w x y z), scales (F, 3)."""
+    from mathutils import Matrix
+
+    locs, quats, scales = [], [], []
+    for m in basis:
+        loc, rot, scale = Matrix(m.tolist()).decompose()
+        locs.append(tuple(loc))
+        quats.append(tuple(rot))
+        scales.append(tuple(scale))
+    return np.array(locs), np.array(quats), np.array(scales)
