@@ -4,7 +4,7 @@ A first run otherwise spends most of its time in the compiler (about 50 s for ``
 on this 2-core machine, 40 s for the demo). The build runs this module (``setup.py``'s build step,
 so ``pip install -e .`` and a wheel build both do), and anyone can run it by hand::
 
-    python -m retime.precompile
+    python -m retime.precompile            # or: python -m retime.precompile guided
 
 It compiles by running the methods themselves on a bundled clip: guided (exact and heuristic) and
 physics (fixed and free duration, with and without changed gravity), so every kernel gets
@@ -45,20 +45,22 @@ def _runs(motion):
     ]
 
 
-def precompile(say=sys.stderr) -> int:
-    """Run the methods once (see the module docstring); return the number of kernels compiled."""
+def precompile(say=sys.stderr, methods=("guided", "physics")) -> int:
+    """Run the methods once (see the module docstring); return the number of kernels compiled.
+    ``methods``: the runs whose label starts with one of these."""
     from .jit import compile_watch
     from .motion import load_motion
 
     motion = load_motion(bundled_path(CLIP))
     t0 = time.perf_counter()
     with compile_watch(say) as watch:
-        for _, run in _runs(motion):
-            run()
+        for label, run in _runs(motion):
+            if label.startswith(tuple(methods)):
+                run()
     if say is not None:
         say.write(f"retime's kernels are compiled and cached ({time.perf_counter() - t0:.0f} s)\n")
     return watch.kernels
 
 
 if __name__ == "__main__":
-    precompile()
+    precompile(methods=tuple(sys.argv[1:]) or ("guided", "physics"))
