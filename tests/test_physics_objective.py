@@ -13,6 +13,7 @@ import physics_synth as ps  # noqa: E402
 from retime.physics import forces as F  # noqa: E402
 from retime.physics import objective as O  # noqa: E402
 from retime.physics import regions as R  # noqa: E402
+from retime.physics.polygon import polygon_distance  # noqa: E402
 from retime.physics.spline import TimingSpline  # noqa: E402
 
 G = 9.81
@@ -113,7 +114,7 @@ def test_distance_term_matches_geometry(setup):
     for i in range(0, rs.n_frames, 17):
         for u, v in zip(rng.normal(0, 3, 10), rng.uniform(0, 6, 10)):
             d, _ = O.frame_terms(obj, i, u, v)
-            assert d == pytest.approx(R.polygon_distance(rs.polygon(i), (u, v)), abs=1e-9)
+            assert d == pytest.approx(polygon_distance(rs.polygon(i), (u, v)), abs=1e-9)
 
 
 @pytest.mark.parametrize("interp", ["linear", "nearest"])

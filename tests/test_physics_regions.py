@@ -14,6 +14,8 @@ import physics_synth as ps  # noqa: E402
 
 from retime.errors import RetimeError  # noqa: E402
 from retime.physics import regions as R  # noqa: E402
+from retime.physics.frame_region import frame_region  # noqa: E402
+from retime.physics.polygon import closest_point, polygon_area, polygon_distance  # noqa: E402
 
 G = 9.81
 
@@ -49,7 +51,7 @@ def test_free_fall_with_relaxation_on_keeps_the_timing():
     for i in range(rs.n_frames):
         P = rs.polygon(i)
         assert rs.contains(i, (0.0, g2 / G))
-        assert R.polygon_area(P) == pytest.approx(4 * eps ** 2 * g2 ** 2 / (G * vx), rel=1e-6)
+        assert polygon_area(P) == pytest.approx(4 * eps ** 2 * g2 ** 2 / (G * vx), rel=1e-6)
         vy = pd.a[i, 1] / pd.mass
         assert np.all(np.abs(vx * P[:, 0]) <= eps * g2 + 1e-9)
         assert np.all(np.abs(vy * P[:, 0] - G * P[:, 1] + g2) <= eps * g2 + 1e-9)
@@ -120,13 +122,13 @@ def _random_frame(seed, m=24, K=16, extra=8):
 @pytest.mark.parametrize("seed", range(4))
 def test_parametric_walk_matches_highs_refinement(seed):
     a, b, c, N, lo, hi = _random_frame(seed)
-    r1 = R.frame_region(a, b, c, N, lo, hi, opts(method="parametric"), 100.0, 6)
-    r2 = R.frame_region(a, b, c, N, lo, hi, opts(method="highs", tol=1e-7), 100.0, 6)
+    r1 = frame_region(a, b, c, N, lo, hi, opts(method="parametric"), 100.0, 6)
+    r2 = frame_region(a, b, c, N, lo, hi, opts(method="highs", tol=1e-7), 100.0, 6)
     assert r1.n_lp <= 4 < r2.n_lp
-    d12 = max(R.polygon_distance(r2.verts, p) for p in r1.verts)
-    d21 = max(R.polygon_distance(r1.verts, p) for p in r2.verts)
+    d12 = max(polygon_distance(r2.verts, p) for p in r1.verts)
+    d21 = max(polygon_distance(r1.verts, p) for p in r2.verts)
     assert d12 < 1e-6 and d21 < 1e-6
-    assert R.polygon_area(r1.verts) == pytest.approx(R.polygon_area(r2.verts), rel=1e-6)
+    assert polygon_area(r1.verts) == pytest.approx(polygon_area(r2.verts), rel=1e-6)
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -135,7 +137,7 @@ def test_support_function_equals_independent_lp(seed):
     independently by scipy's linprog over (u, v, lambda)."""
     a, b, c, N, lo, hi = _random_frame(seed + 10)
     o = opts()
-    r = R.frame_region(a, b, c, N, lo, hi, o, 100.0, 6)
+    r = frame_region(a, b, c, N, lo, hi, o, 100.0, 6)
     budget = r.budget
     K = N.shape[1]
     rng = np.random.default_rng(seed)
@@ -170,7 +172,7 @@ def test_impossible_frame_is_relaxed_not_empty():
     N = -pd.N[i]
     lo, hi = pd.tau_lo.copy(), pd.tau_hi.copy()
     o = opts(body_weight=pd.mass * G, allowance=0.0)
-    r = R.frame_region(pd.a[i], pd.b[i], pd.c[i], N, lo, hi, o, pd.mass * G, 6, budget=np.zeros(len(lo)))
+    r = frame_region(pd.a[i], pd.b[i], pd.c[i], N, lo, hi, o, pd.mass * G, 6, budget=np.zeros(len(lo)))
     assert r.relaxed and r.relaxation > 0.5 and len(r.verts) >= 1
     assert r.relaxation > o.max_relaxation  # flagged as implausible by compute_regions
 
@@ -183,17 +185,17 @@ def test_parallel_equals_serial():
     # polygons as sets and the centre's least force, not the raw arrays
     for i in range(r1.n_frames):
         P, Q = r1.polygon(i), r2.polygon(i)
-        assert max(R.polygon_distance(Q, p) for p in P) < 1e-7
-        assert max(R.polygon_distance(P, q) for q in Q) < 1e-7
+        assert max(polygon_distance(Q, p) for p in P) < 1e-7
+        assert max(polygon_distance(P, q) for q in Q) < 1e-7
     w = np.linalg.norm(pd.N[:, :3, :], axis=1)
     assert np.allclose((w * r1.center_lam).sum(1), (w * r2.center_lam).sum(1), rtol=1e-6, atol=1e-6)
 
 
 def test_polygon_geometry_helpers():
     P = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.0, 1.0]])
-    assert R.polygon_area(P) == pytest.approx(2.0)
-    assert R.closest_point(P, (1.0, 0.5))[1] == 0.0
-    q, d = R.closest_point(P, (3.0, 2.0))
+    assert polygon_area(P) == pytest.approx(2.0)
+    assert closest_point(P, (1.0, 0.5))[1] == 0.0
+    q, d = closest_point(P, (3.0, 2.0))
     assert np.allclose(q, [2.0, 1.0]) and d == pytest.approx(math.sqrt(2))
-    q, d = R.closest_point(P[:2], (1.0, 1.0))  # a segment
+    q, d = closest_point(P[:2], (1.0, 1.0))  # a segment
     assert np.allclose(q, [1.0, 0.0]) and d == pytest.approx(1.0)

@@ -10,8 +10,6 @@ from retime.cli import main
 from retime.errors import FormatError, RetimeError
 from retime.viz.plot import label_from_path, plot_timing, speed_samples
 from retime.viz.regions import (
-    _convex_ccw,
-    _polygon_distance,
     load_report,
     pick_frame,
     plot_contact_strip,
@@ -89,21 +87,6 @@ def test_region_plot_and_strip(tmp_path):
         plot_regions(report, 500, tmp_path / "no.png")
     # CLI
     assert main(["plot", "--regions", str(path), "--frame", "10", "-o", str(tmp_path / "c.png")]) == 0
-
-
-def test_polygon_distance_matches_brute_force():
-    rng = np.random.default_rng(3)
-    poly = _convex_ccw(rng.normal(size=(12, 2)))
-    pts = rng.normal(scale=2.0, size=(300, 2))
-    got = _polygon_distance(pts, poly)
-    # brute force: distance to densely sampled edges, 0 inside (winding test by angle sum)
-    edge = np.concatenate([np.linspace(a, b, 4000) for a, b in zip(poly, np.roll(poly, -1, axis=0))])
-    brute = np.min(np.linalg.norm(pts[:, None] - edge[None], axis=-1), axis=1)
-    ang = np.arctan2(*(poly[None] - pts[:, None]).transpose(2, 0, 1)[::-1])
-    winding = np.abs(np.sum(np.angle(np.exp(1j * np.diff(np.concatenate([ang, ang[:, :1]], 1), axis=1))), axis=1))
-    inside = winding > np.pi
-    brute[inside] = 0.0
-    np.testing.assert_allclose(got, brute, atol=2e-3)
 
 
 def test_report_contacts_map_to_joints():

@@ -13,7 +13,6 @@ physics treat them as handles the optimizer may move.
 """
 from __future__ import annotations
 
-import dataclasses
 import importlib
 import math
 import threading
@@ -290,10 +289,7 @@ class PhysicsMethod(Method):
 
         terms_pd_regions_obj = _physics_prepared(self.clip, key, job.status, job.gone)
         self.prepared = terms_pd_regions_obj
-        obj = terms_pd_regions_obj[3]
-        if dataclasses.is_dataclass(obj) and hasattr(obj, "cache"):
-            # the baked objective is shared by the sessions; its lookup hints are per session
-            obj = dataclasses.replace(obj, cache=np.array(obj.cache, copy=True))
+        obj = terms_pd_regions_obj[3]  # shared by the sessions: its lookup hints are each problem's own
         keytimes = {(round(p.s, 9), round(p.t, 9)) for p in job.points[1:-1] if p.locked}
         keytimes = sorted(keytimes | {(round(a, 9), round(b, 9)) for a, b in job.keytimes})
         problem = make_problem(obj, self.clip.motion.duration, job.duration, keytimes)
@@ -406,7 +402,7 @@ _SETTING_LOCKS: dict = {}
 
 def _physics_prepared(clip, key, status, gone=lambda: False):
     """Dynamics, regions and objective for a clip and setting: computed once, shared by sessions.
-    Different settings compute side by side (the physics keeps its solver state per thread); one
+    Different settings compute side by side (each computation owns its solver state); one
     setting is computed by one thread while the others wait for it. ``gone``: the asking
     session's tab has closed or the editor is stopping; the computation then stops."""
     from ..physics.api import prepare  # noqa: PLC0415

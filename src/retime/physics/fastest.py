@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .regions import _clip_halfplanes
+from .polygon import clip_halfplanes
 
 
 @dataclass
@@ -62,7 +62,7 @@ def _fastest(offsets, vx, vy, times, speed):
         nrm = math.hypot(2.0 * ds, 1.0)  # the strip klo <= v + 2 ds u <= khi as normalized half-planes
         strip[0, 0], strip[0, 1], strip[0, 2] = 2.0 * ds / nrm, 1.0 / nrm, khi[i + 1] / nrm
         strip[1, 0], strip[1, 1], strip[1, 2] = -2.0 * ds / nrm, -1.0 / nrm, -klo[i + 1] / nrm
-        _, qy, _, ok = _clip_halfplanes(vx[a:b].copy(), vy[a:b].copy(), none[:b - a], strip, 0.0)
+        _, qy, _, ok = clip_halfplanes(vx[a:b].copy(), vy[a:b].copy(), none[:b - a], strip, 0.0)
         if not ok or len(qy) == 0:
             return math.inf, i
         klo[i], khi[i] = max(qy.min(), 0.0), qy.max()

@@ -19,7 +19,7 @@ so the baked objective of :mod:`.objective` can be minimized *globally* on a gri
 
 Speeds are fine (320 levels from 0.05x to 12x, 1.7 % apart) and an edge changes the speed by at
 most ``band`` levels, so small p'' exist at any speed and an edge costs O(band), not O(levels). The
-edge costs are computed once (compiled, in parallel over edges); each bisection step is one
+edge costs are computed once (compiled); each bisection step is one
 O(E J band) pass. ``kappa`` makes the duration/cost front non-convex, so the Lagrangian may jump over
 the target duration; it is then lowered (down to 0, the objective alone) until the target is met
 within 2 %. The best path's speed profile is fitted by the spline (with twice the control points
@@ -27,10 +27,9 @@ when the path gives frames up) and refined by the local optimizer
 (:mod:`.optimize`) on the objective, with the frames the path gives up softened (:func:`soften`) so
 that the refinement keeps the violation where the grid optimum put it.
 
-Measured (CMU jumps at 0.4 of their duration, below their least physical duration; fraction of
-output frames feasible, grid start vs the paper's uniform start): 16_06 0.92 vs 0.75, 13_39 0.79 vs
-0.58, 13_11 0.86 vs 0.78, 16_05 0.61 vs 0.48; at half duration 02_04 (which starts with a T-pose)
-0.92 vs 0.83.
+How the two starts compare on the CMU jumps (the fraction of output frames feasible, with this
+start and with the paper's uniform one): ``benchmarks/physics_jumps.py`` and
+``benchmarks/physics_jumps.py --start uniform``.
 """
 from __future__ import annotations
 
@@ -78,25 +77,26 @@ def speed_levels(w_lo=0.05, w_hi=12.0, levels=320) -> np.ndarray:
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", inline="always")
-def _sample(m, u, v, poff, px, py, cen, scale, mode, wc, cache, alpha, delta, d_tol):
+def _sample(m, u, v, ob, cache, d_tol):
     """The objective's integrand f at frame m and whether (u, v) lies outside its region by more than
     d_tol (in the penalty's own measure)."""
-    g, _, _, _, _, d2, _, _ = _frame_parts(m, u, v, poff, px, py, cen, scale, mode, wc, cache)
-    pen = penalty(d2, alpha, delta)
+    alpha = ob.alpha
+    g, _, _, _, _, d2, _, _ = _frame_parts(m, u, v, ob, cache)
+    pen = penalty(d2, alpha, ob.delta)
     return g + pen, alpha > 0.0 and pen > alpha * d_tol
 
 
 # serial: parallel=True doubled its compile time (4.1 s -> 2.0 s) for no gain on 2 busy cores
 # (the 2-minute capture: 3.0 s wall for 3.7 s CPU); each edge writes only its own cells
 @njit(cache=True, fastmath=True, error_model="numpy")
-def _edge_costs(nodes, times, w, band, poff, px, py, cen, scale, mode, wc, alpha, delta, gamma, d_tol,
-                u_max, cost, outt, dur):
+def _edge_costs(nodes, times, w, band, ob, d_tol, u_max, cost, outt, dur):
     """Objective cost[e, j, k], output time outside the regions outt[e, j, k] and output time
     dur[e, j, k] of the edge from (nodes[e], w[j]) to (nodes[e + 1], w[j + k - band])."""
     E = len(nodes) - 1
     J = len(w)
+    gamma = ob.gamma
     for e in range(E):
-        cache = np.zeros(len(poff) - 1, dtype=np.int64)
+        cache = np.zeros(len(ob.poff) - 1, dtype=np.int64)
         ia, ib = nodes[e], nodes[e + 1]
         sa, L = times[ia], times[ib] - times[ia]
         for j in range(J):
@@ -120,7 +120,7 @@ def _edge_costs(nodes, times, w, band, poff, px, py, cen, scale, mode, wc, alpha
                     ds = times[m + 1] - times[m]
                     v = vj + (vl - vj) * (times[m] - sa) / L
                     pd = math.sqrt(v)
-                    f, out = _sample(m, u, v, poff, px, py, cen, scale, mode, wc, cache, alpha, delta, d_tol)
+                    f, out = _sample(m, u, v, ob, cache, d_tol)
                     if out:
                         o += ds / pd
                     c += ds * (f / pd + gamma * (pd + 1.0 / pd - 2.0))
@@ -169,9 +169,9 @@ def _shortest(cost, outt, kappa, dur, mu, band):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
-def _outside(nodes, times, speed, poff, px, py, cen, scale, mode, wc, alpha, delta, d_tol, out):
+def _outside(nodes, times, speed, ob, d_tol, out):
     """out[m] = frame m lies outside its region (beyond d_tol) on the path's speed profile."""
-    cache = np.zeros(len(poff) - 1, dtype=np.int64)
+    cache = np.zeros(len(ob.poff) - 1, dtype=np.int64)
     for e in range(len(nodes) - 1):
         ia, ib = nodes[e], nodes[e + 1]
         sa, L = times[ia], times[ib] - times[ia]
@@ -179,7 +179,7 @@ def _outside(nodes, times, speed, poff, px, py, cen, scale, mode, wc, alpha, del
         u = (vl - vj) / (2.0 * L)
         for m in range(ia, ib + 1 if e == len(nodes) - 2 else ib):
             v = vj + (vl - vj) * (times[m] - sa) / L
-            out[m] = _sample(m, u, v, poff, px, py, cen, scale, mode, wc, cache, alpha, delta, d_tol)[1]
+            out[m] = _sample(m, u, v, ob, cache, d_tol)[1]
 
 
 def global_start(obj: BakedObjective, duration=None, stride=None, levels=320, band=10, w_lo=0.05, w_hi=12.0,
@@ -200,8 +200,7 @@ def global_start(obj: BakedObjective, duration=None, stride=None, levels=320, ba
     cost = np.empty((E, J, B), dtype=np.float32)  # single precision: the sums along a path are double
     outt = np.empty((E, J, B), dtype=np.float32)
     dur = np.empty((E, J, B), dtype=np.float32)
-    _edge_costs(nodes, times, w, int(band), obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc,
-                obj.alpha, obj.delta, obj.gamma, float(d_tol), float(u_max), cost, outt, dur)
+    _edge_costs(nodes, times, w, int(band), obj.arrays, float(d_tol), float(u_max), cost, outt, dur)
     path, T, val = _shortest(cost, outt, float(kappa), dur, 0.0, int(band))
     if val >= _BIG:
         return None
@@ -219,8 +218,7 @@ def global_start(obj: BakedObjective, duration=None, stride=None, levels=320, ba
                 break
     speed = w[path]
     out = np.zeros(n, dtype=np.bool_)
-    _outside(nodes, times, speed, obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc, obj.alpha,
-             obj.delta, float(d_tol), out)
+    _outside(nodes, times, speed, obj.arrays, float(d_tol), out)
     return GlobalStart(times[nodes], speed, float(T), float(mu), time.perf_counter() - t0, out)
 
 
@@ -268,11 +266,12 @@ def soften(obj: BakedObjective, frames, factor=0.05) -> BakedObjective:
     import dataclasses
 
     frames = np.asarray(frames, dtype=bool)
-    scale, px, py, cen = obj.scale.copy(), obj.px.copy(), obj.py.copy(), obj.cen.copy()
+    ob = obj.arrays
+    scale, px, py, cen = ob.scale.copy(), ob.px.copy(), ob.py.copy(), ob.cen.copy()
     for i in np.flatnonzero(frames):
-        a, b = obj.poff[i], obj.poff[i + 1]
+        a, b = ob.poff[i], ob.poff[i + 1]
         scale[i] *= factor
         px[a:b] *= factor
         py[a:b] *= factor
         cen[i] *= factor
-    return dataclasses.replace(obj, scale=scale, px=px, py=py, cen=cen, cache=obj.cache.copy())
+    return dataclasses.replace(obj, arrays=ob._replace(scale=scale, px=px, py=py, cen=cen))

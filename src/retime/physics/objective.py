@@ -1,8 +1,13 @@
 """The retiming objective (McCann et al. 2006, Eq. 14, sec. 3.5-3.6), baked and compiled.
 
-    E = integral over output time of  alpha |(p'', p'^2) - closest(region)|^2
-                                    + beta  |tau(p'', p'^2) - tau'|^2 / tau_scale^2
+    E = integral over output time of  alpha pen(d) + beta |tau(p'', p'^2) - tau'|^2 / tau_scale^2
+      + gamma * integral over source time of (p' + 1/p' - 2)
 
+``d`` is the distance from (p'', p'^2) to the frame's region, in the plane (``metric="plane"``, the
+paper's) or with u and v scaled per frame by the root wrench they demand (``"residual"``, the
+default, :func:`residual_scales`); ``pen(d)`` is d^2 as in Eq. 14 (``penalty="l2"``) or the exact
+penalty sqrt(d^2 + delta^2) - delta (``"l1"``, which :mod:`retime.physics.api` uses). The last
+term, a mild preference for the original speed, is not the paper's (``gamma = 0`` removes it).
 ``tau`` are the actuated joint torques with the fan contact model of :mod:`retime.physics.forces`;
 the target ``tau'`` is zero (``"minimize"``, least effort) or the original motion's torques at its
 original timing (``"match"``). ``tau_scale^2`` is the mean squared original torque, so ``beta`` is
@@ -23,8 +28,9 @@ written.
 **Integration.** The integral over output time is taken over source time instead,
 ``E = integral f / p' ds``, with samples at a fixed spacing of 1 / (samples_per_frame * fps) in
 source time (4 per source frame by default, as the paper asks: "at least once every quarter of a
-source frame"). Between two frames the integrand is interpolated linearly (the paper interpolates the
-coefficients linearly). Each sample's output time is found by inverting the spline (Newton,
+source frame"). Each sample takes the terms of its nearest frame (``interp="nearest"``, the default)
+or blends the two frames around it (``"linear"``, as the paper interpolates the coefficients). Each
+sample's output time is found by inverting the spline (Newton,
 amortized by locality), so the set of samples and their frames never change during optimization
 and the objective is smooth in the spline's parameters. Its gradient is analytic: with respect to the
 coefficients c and the duration T (each sample touches four coefficients), then through
@@ -34,38 +40,45 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
 from ..errors import RetimeError
+from .polygon import boundary_closest, edge_projection
 
 OBJECTIVES = ("match", "minimize")
 
 
-@dataclass
-class BakedObjective:
-    """Everything an evaluation needs, in flat arrays (see :func:`bake`)."""
+class BakedArrays(NamedTuple):
+    """What the compiled evaluation reads (see :func:`bake`), passed to every kernel as one value."""
 
-    times: np.ndarray  # (n,) frame source times
     poff: np.ndarray  # (n+1,) polygon offsets
-    px: np.ndarray
+    px: np.ndarray  # (P,) polygon vertices, in the frame's metric
     py: np.ndarray
-    cen: np.ndarray  # (n, 2)
+    cen: np.ndarray  # (n, 2) fan centres, in the frame's metric
     scale: np.ndarray  # (n, 2) metric of the feasibility term: (u, v) -> (scale_u u, scale_v v)
     mode: np.ndarray  # (n,) 0 = fan wedges, 1 = one torque model + fan distance, 2 = degenerate polygon
     wc: np.ndarray  # (P, 6) torque coefficients per wedge (wedge k of frame i at poff[i] + k)
-    alpha: float
-    beta: float
-    tau_scale: float
     s: np.ndarray  # (Ns,) source sample times
     omega: np.ndarray  # (Ns,) trapezoid weights in source time
     fi: np.ndarray  # (Ns,) frame index of each sample
     fw: np.ndarray  # (Ns,) weight of frame fi + 1
-    cache: np.ndarray  # (n,) last wedge per frame (amortized lookup)
-    gamma: float = 0.0  # weight of the speed regularizer gamma (p' + 1/p' - 2) per source second
-    delta: float = 0.0  # 0: alpha d^2 (Eq. 14); > 0: alpha (sqrt(d^2 + delta^2) - delta) (exact penalty)
-    # unbaked data (NP-Obj): per wedge affine lambda and the dynamics
+    alpha: float  # weight of the feasibility term
+    delta: float  # 0: alpha d^2 (Eq. 14); > 0: alpha (sqrt(d^2 + delta^2) - delta) (exact penalty)
+    gamma: float  # weight of the speed regularizer gamma (p' + 1/p' - 2) per source second
+
+
+@dataclass
+class BakedObjective:
+    """The baked objective (see :func:`bake`): immutable once baked, so sessions and threads may
+    share it; what an evaluation changes lives in an :class:`ObjectiveWorkspace`."""
+
+    times: np.ndarray  # (n,) frame source times
+    arrays: BakedArrays
+    beta: float
+    tau_scale: float
     seconds: float = 0.0
 
     @property
@@ -73,12 +86,30 @@ class BakedObjective:
         return len(self.times)
 
 
+@dataclass
+class ObjectiveWorkspace:
+    """The mutable side of evaluating one objective: the last fan wedge found per frame, where the
+    next lookup starts (amortized: consecutive evaluations ask about nearby timings). Belongs to one
+    optimization (:class:`~.optimize.Problem`, hence one :class:`~.optimize.RetimingSession`) and
+    one thread."""
+
+    wedge: np.ndarray  # (n,) int64
+
+    @classmethod
+    def for_objective(cls, obj: BakedObjective) -> ObjectiveWorkspace:
+        return cls(np.zeros(obj.n_frames, dtype=np.int64))
+
+
+def _wedges(obj, workspace):
+    return (workspace or ObjectiveWorkspace.for_objective(obj)).wedge
+
+
 def samples(times, samples_per_frame=4, interp="nearest"):
     """Source sample times, trapezoid weights, frame index and interpolation weight.
 
     ``interp="linear"`` blends the two frames around a sample (the paper's linear interpolation of
     coefficients); ``"nearest"`` (default) takes the nearest frame's, which needs one frame
-    evaluation per sample instead of up to two (30% faster) for the same sampling density."""
+    evaluation per sample instead of up to two for the same sampling density."""
     times = np.asarray(times, dtype=float)
     spf = int(samples_per_frame)
     if spf < 1:
@@ -196,13 +227,11 @@ def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_f
     Fr = np.empty((len(poff) - 1, 4))
     Fr[:, :2], Fr[:, 2:] = scale, cen * scale
     C = np.ascontiguousarray
-    out = BakedObjective(np.asarray(regions.times, float), poff, C(V[:, 0]), C(V[:, 1]), C(Fr[:, 2:]), C(Fr[:, :2]),
-                         mode, C(V[:, 2:]), float(alpha),
-                         float(beta), float(tau_scale), s, om, fi, fw,
-                         np.zeros(len(poff) - 1, dtype=np.int64), float(gamma),
-                         0.0 if penalty == "l2" else float(delta))
     if penalty not in ("l1", "l2"):
         raise RetimeError(f"unknown penalty {penalty!r} (use 'l2' or 'l1')")
+    arrays = BakedArrays(poff, C(V[:, 0]), C(V[:, 1]), C(Fr[:, 2:]), C(Fr[:, :2]), mode, C(V[:, 2:]), s, om, fi, fw,
+                         float(alpha), 0.0 if penalty == "l2" else float(delta), float(gamma))
+    out = BakedObjective(np.asarray(regions.times, float), arrays, float(beta), float(tau_scale))
     out.seconds = time.perf_counter() - t0
     return out
 
@@ -350,54 +379,19 @@ def _bake_kernel(a, b, c, N, tgt, poff, px, py, cen, lam, clam, mode, scale, wc)
 # Evaluation
 # ------------------------------------------------------------------------------------------------
 
-@njit(cache=True, inline="always")
-def _closest_brute(p0, p1, px, py, u, v):
-    nv = p1 - p0
-    if nv == 1:
-        return px[p0], py[p0]
-    bd = 1e300
-    qx, qy = px[p0], py[p0]
-    for k in range(nv):
-        ax, ay = px[p0 + k], py[p0 + k]
-        j = p0 + (k + 1) % nv
-        ex, ey = px[j] - ax, py[j] - ay
-        ee = ex * ex + ey * ey
-        t = 0.0
-        if ee > 0:
-            t = ((u - ax) * ex + (v - ay) * ey) / ee
-            t = min(1.0, max(0.0, t))
-        cx, cy = ax + t * ex, ay + t * ey
-        d = (cx - u) ** 2 + (cy - v) ** 2
-        if d < bd:
-            bd = d
-            qx, qy = cx, cy
-    return qx, qy
-
-
-@njit(cache=True, inline="always")
-def _edge_proj(p0, nv, e, px, py, u, v):
-    """Closest point of edge e to (u, v) and the unclamped edge parameter."""
-    f = e + 1 if e + 1 < nv else 0
-    ax, ay = px[p0 + e], py[p0 + e]
-    ex, ey = px[p0 + f] - ax, py[p0 + f] - ay
-    ee = ex * ex + ey * ey
-    t = ((u - ax) * ex + (v - ay) * ey) / ee if ee > 0 else 0.0
-    tc = min(1.0, max(0.0, t))
-    return ax + tc * ex, ay + tc * ey, t
-
-
 @njit(cache=True, fastmath=True, error_model="numpy", inline="always")
-def _frame_parts(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache):
-    """Frame i at (u, v) = (p'', p'^2): the torque term g and its gradient (gu, gv), the offset (du, dv)
-    from the region's closest point and its square d2 (in the frame's metric, which scales u by su
-    and v by sv)."""
+def _frame_parts(i, u0, v0, ob, cache):
+    """Frame i at (u, v) = (p'', p'^2) of the baked arrays ``ob``: the torque term g and its gradient
+    (gu, gv), the offset (du, dv) from the region's closest point and its square d2 (in the frame's
+    metric, which scales u by su and v by sv). ``cache[i]``: the wedge to start from, updated."""
+    poff, px, py, cen, scale, mode, wc = ob.poff, ob.px, ob.py, ob.cen, ob.scale, ob.mode, ob.wc
     su, sv = scale[i, 0], scale[i, 1]
     u, v = su * u0, sv * v0
     p0, p1 = poff[i], poff[i + 1]
     nv = p1 - p0
     md = mode[i]
     if md == 2:
-        qx, qy = _closest_brute(p0, p1, px, py, u, v)
+        qx, qy = boundary_closest(p0, p1, px, py, u, v)
         k = 0
         # a degenerate polygon is a point or a segment: its interior is empty
     else:
@@ -431,7 +425,7 @@ def _frame_parts(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache):
             qx, qy = u, v
         else:
             # outside, beyond edge k: walk along the boundary while the distance drops
-            qx, qy, t = _edge_proj(p0, nv, k, px, py, u, v)
+            qx, qy, t = edge_projection(p0, nv, k, px, py, u, v)
             d = (qx - u) ** 2 + (qy - v) ** 2
             if t < 0.0 or t > 1.0:
                 step = -1 if t < 0.0 else 1
@@ -442,7 +436,7 @@ def _frame_parts(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache):
                         e = nv - 1
                     elif e >= nv:
                         e = 0
-                    q2x, q2y, t2 = _edge_proj(p0, nv, e, px, py, u, v)
+                    q2x, q2y, t2 = edge_projection(p0, nv, e, px, py, u, v)
                     d2 = (q2x - u) ** 2 + (q2y - v) ** 2
                     if d2 < d:
                         qx, qy, d = q2x, q2y, d2
@@ -471,9 +465,10 @@ def penalty(d2, alpha, delta):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", inline="always")
-def _frame_eval(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache, alpha, delta):
+def _frame_eval(i, u0, v0, ob, cache):
     """f, df/du, df/dv of frame i at (u, v) = (p'', p'^2) (polygon and centre in the frame's metric)."""
-    g, gu, gv, du, dv, d2, su, sv = _frame_parts(i, u0, v0, poff, px, py, cen, scale, mode, wc, cache)
+    alpha, delta = ob.alpha, ob.delta
+    g, gu, gv, du, dv, d2, su, sv = _frame_parts(i, u0, v0, ob, cache)
     if d2 == 0.0:  # inside the region: only the torque term
         return g, gu, gv
     if delta <= 0.0:
@@ -529,9 +524,9 @@ def _invert(a0, a1, a2, a3, sj, x, h, S, steps):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
-def _chunk(j0, j1, Asp, T, S, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode, wc, cache, alpha,
-           delta, gamma, want_grad, gc):
+def _chunk(j0, j1, Asp, T, S, breaks, Msp, ob, cache, want_grad, gc):
     """Samples j0..j1-1 of the objective (see _evaluate); gradient added into gc."""
+    s, omega, fi, fw, gamma = ob.s, ob.omega, ob.fi, ob.fw, ob.gamma
     n_span = len(breaks) - 1
     gT = 0.0
     total = 0.0
@@ -578,12 +573,12 @@ def _chunk(j0, j1, Asp, T, S, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, 
         wgt = fw[jj]
         f, fu, fv = 0.0, 0.0, 0.0
         if wgt < 1.0:
-            f0, fu0, fv0 = _frame_eval(i, u, v, poff, px, py, cen, scale, mode, wc, cache, alpha, delta)
+            f0, fu0, fv0 = _frame_eval(i, u, v, ob, cache)
             f += (1.0 - wgt) * f0
             fu += (1.0 - wgt) * fu0
             fv += (1.0 - wgt) * fv0
         if wgt > 0.0:
-            f1, fu1, fv1 = _frame_eval(i + 1, u, v, poff, px, py, cen, scale, mode, wc, cache, alpha, delta)
+            f1, fu1, fv1 = _frame_eval(i + 1, u, v, ob, cache)
             f += wgt * f1
             fu += wgt * fu1
             fv += wgt * fv1
@@ -607,22 +602,19 @@ def _chunk(j0, j1, Asp, T, S, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, 
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
-def _evaluate(c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode, wc, cache, alpha, delta,
-              gamma, want_grad, gc):
+def _evaluate(c, T, breaks, Msp, ob, cache, want_grad, gc):
     """Objective (and gradient w.r.t. c and T when want_grad) of the spline with coefficients c."""
     Asp = _span_poly(c, Msp, len(breaks) - 1)
     for k in range(len(gc)):
         gc[k] = 0.0
-    return _chunk(0, len(s), Asp, T, c[len(c) - 1], breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode,
-                  wc, cache, alpha, delta, gamma, want_grad, gc)
+    return _chunk(0, len(ob.s), Asp, T, c[len(c) - 1], breaks, Msp, ob, cache, want_grad, gc)
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", parallel=True)
-def _evaluate_par(nch, c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode, wc, cache, alpha, delta,
-                  gamma, want_grad, gc):
+def _evaluate_par(nch, c, T, breaks, Msp, ob, cache, want_grad, gc):
     """_evaluate split into ``nch`` chunks of samples run on parallel threads."""
     Asp = _span_poly(c, Msp, len(breaks) - 1)
-    ns = len(s)
+    ns = len(ob.s)
     tot = np.zeros(nch)
     gts = np.zeros(nch)
     gcs = np.zeros((nch, len(gc)))
@@ -630,8 +622,7 @@ def _evaluate_par(nch, c, T, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, s
     for k in prange(nch):
         j0 = (ns * k) // nch
         j1 = (ns * (k + 1)) // nch
-        tot[k], gts[k] = _chunk(j0, j1, Asp, T, S, breaks, Msp, s, omega, fi, fw, poff, px, py, cen, scale, mode,
-                                wc, cache, alpha, delta, gamma, want_grad, gcs[k])
+        tot[k], gts[k] = _chunk(j0, j1, Asp, T, S, breaks, Msp, ob, cache, want_grad, gcs[k])
     for q in range(len(gc)):
         acc = 0.0
         for k in range(nch):
@@ -645,7 +636,7 @@ PARALLEL_MIN_SAMPLES = 20000  # threads pay off only for long clips; on a shared
 
 
 def _kernel(obj):
-    if len(obj.s) < PARALLEL_MIN_SAMPLES:  # the usual case, decided without asking numba
+    if len(obj.arrays.s) < PARALLEL_MIN_SAMPLES:  # the usual case, decided without asking numba
         return _evaluate
     import numba
 
@@ -655,40 +646,104 @@ def _kernel(obj):
     return _evaluate
 
 
-def evaluate(obj: BakedObjective, spline, w=None, grad=False):
-    """E(w) (and dE/dw)."""
+def evaluate(obj: BakedObjective, spline, w=None, grad=False, workspace: ObjectiveWorkspace | None = None):
+    """E(w) (and dE/dw). ``workspace``: the caller's wedge hints (default: fresh ones)."""
     w = spline.w if w is None else w
     c = spline.coefficients(w)
     T = spline.duration_of(w)
     gc = np.zeros(len(c))
-    val, gT = _kernel(obj)(c, T, spline.breaks, spline.span_matrices, obj.s, obj.omega, obj.fi, obj.fw,
-                        obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc, obj.cache, obj.alpha,
-                        obj.delta, obj.gamma, grad, gc)
+    val, gT = _kernel(obj)(c, T, spline.breaks, spline.span_matrices, obj.arrays, _wedges(obj, workspace), grad, gc)
     if not grad:
         return float(val)
     return float(val), spline.chain(gc, gT, w)
 
 
-def evaluate_c(obj: BakedObjective, spline, c, T, grad=False):
+def evaluate_c(obj: BakedObjective, spline, c, T, grad=False, workspace: ObjectiveWorkspace | None = None):
     """E and (dE/dc, dE/dT) for raw coefficients (tests, benchmarks)."""
     gc = np.zeros(len(c))
-    val, gT = _kernel(obj)(np.asarray(c, float), float(T), spline.breaks, spline.span_matrices, obj.s, obj.omega,
-                        obj.fi, obj.fw, obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc,
-                        obj.cache, obj.alpha, obj.delta, obj.gamma, grad, gc)
+    val, gT = _kernel(obj)(np.asarray(c, float), float(T), spline.breaks, spline.span_matrices, obj.arrays,
+                           _wedges(obj, workspace), grad, gc)
     return (float(val), gc, float(gT)) if grad else float(val)
 
 
-def frame_terms(obj: BakedObjective, i, u, v):
+def frame_terms(obj: BakedObjective, i, u, v, workspace: ObjectiveWorkspace | None = None):
     """(distance to the region in the objective's metric, torque term) of frame i at (u, v)."""
-    g, _, _, _, _, d2, _, _ = _frame_parts(int(i), float(u), float(v), obj.poff, obj.px, obj.py, obj.cen, obj.scale,
-                                           obj.mode, obj.wc, obj.cache)
+    g, _, _, _, _, d2, _, _ = _frame_parts(int(i), float(u), float(v), obj.arrays, _wedges(obj, workspace))
     return math.sqrt(d2), g
 
 
-def frame_gradient(obj: BakedObjective, i, u, v):
+def frame_gradient(obj: BakedObjective, i, u, v, workspace: ObjectiveWorkspace | None = None):
     """(f, df/du, df/dv) of frame i with the baked weights (tests)."""
-    return _frame_eval(int(i), float(u), float(v), obj.poff, obj.px, obj.py, obj.cen, obj.scale, obj.mode, obj.wc,
-                       obj.cache, obj.alpha, obj.delta)
+    return _frame_eval(int(i), float(u), float(v), obj.arrays, _wedges(obj, workspace))
+
+
+# ------------------------------------------------------------------------------------------------
+# NumPy twins (the reference of tests/test_kernel_parity.py): the same objective, computed afresh
+# without numba, without wedge hints and without Newton's method
+# ------------------------------------------------------------------------------------------------
+
+def frame_terms_numpy(obj: BakedObjective, i, u, v):
+    """Twin of :func:`frame_terms`: (distance in the objective's metric, torque term)."""
+    from .polygon import closest_points_numpy
+
+    ob = obj.arrays
+    su, sv = ob.scale[i]
+    x, y = su * u, sv * v
+    p0, p1 = ob.poff[i], ob.poff[i + 1]
+    P = np.column_stack([ob.px[p0:p1], ob.py[p0:p1]])
+    k = 0
+    if ob.mode[i] == 2:  # a point or a segment: no interior
+        E = np.roll(P, -1, axis=0) - P
+        ee = (E ** 2).sum(1)
+        t = np.clip(((x - P[:, 0]) * E[:, 0] + (y - P[:, 1]) * E[:, 1]) / np.where(ee > 0, ee, 1.0), 0.0, 1.0)
+        C = P + np.where(ee > 0, t, 0.0)[:, None] * E
+        d = float(np.min(np.hypot(C[:, 0] - x, C[:, 1] - y))) if len(P) > 1 else float(np.hypot(*(P[0] - (x, y))))
+    else:
+        d = float(closest_points_numpy(P, [(x, y)])[1][0])
+        # the fan wedge k whose rays from the centre enclose the direction to (x, y)
+        R0 = P - ob.cen[i]
+        R1 = np.roll(R0, -1, axis=0)
+        dx, dy = x - ob.cen[i, 0], y - ob.cen[i, 1]
+        between = (R0[:, 0] * dy - R0[:, 1] * dx >= 0.0) & (dx * R1[:, 1] - dy * R1[:, 0] > 0.0)
+        k = int(np.argmax(between)) if between.any() else 0
+    w = ob.wc[p0 + k] if ob.mode[i] == 0 else ob.wc[p0]  # mode 1: one torque model for the frame
+    g = w[0] * v * v + w[1] * u * u + w[2] * u * v + w[3] * v + w[4] * u + w[5]
+    return d, float(g)
+
+
+def _penalty_numpy(d2, alpha, delta):
+    if delta <= 0.0:
+        return alpha * d2
+    return np.where(d2 == 0.0, 0.0, alpha * (np.sqrt(d2 + delta * delta) - delta))
+
+
+def evaluate_numpy(obj: BakedObjective, spline, w=None) -> float:
+    """Twin of :func:`evaluate` (the value): each sample's output time by bisection on its span's
+    cubic, each frame term by :func:`frame_terms_numpy`."""
+    ob = obj.arrays
+    w = spline.w if w is None else w
+    c = spline.coefficients(w)
+    T = spline.duration_of(w)
+    breaks, Msp = spline.breaks, spline.span_matrices
+    n_span = len(breaks) - 1
+    Asp = np.einsum("mrl,ml->mr", Msp, c[np.arange(n_span)[:, None] + np.arange(4)])  # s(x) per span
+    m = np.clip(np.searchsorted(Asp[:, 0], ob.s, side="right") - 1, 0, n_span - 1)
+    a0, a1, a2, a3 = Asp[m].T
+    lo, hi = np.zeros(len(m)), (breaks[m + 1] - breaks[m]).astype(float)
+    for _ in range(200):
+        x = 0.5 * (lo + hi)
+        above = a0 + x * (a1 + x * (a2 + x * a3)) > ob.s
+        hi, lo = np.where(above, x, hi), np.where(above, lo, x)
+    x = 0.5 * (lo + hi)
+    pd = (a1 + x * (2.0 * a2 + 3.0 * a3 * x)) / T
+    u = (2.0 * a2 + 6.0 * a3 * x) / T ** 2
+    v = pd * pd
+    f = np.zeros(len(m))
+    for side, weight in ((0, 1.0 - ob.fw), (1, ob.fw)):
+        for j in np.flatnonzero(weight > 0.0):
+            d, g = frame_terms_numpy(obj, ob.fi[j] + side, u[j], v[j])
+            f[j] += weight[j] * (g + _penalty_numpy(d * d, ob.alpha, ob.delta))
+    return float(np.sum(ob.omega * (f / pd + ob.gamma * (pd + 1.0 / pd - 2.0))))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -716,7 +771,7 @@ def unbaked(pd, regions, target, obj: BakedObjective) -> UnbakedObjective:
 
     act = actuated_mask(pd)
     K = np.asarray(pd.N).shape[2]
-    lam_aff = np.zeros((len(obj.px), 3, K))
+    lam_aff = np.zeros((len(obj.arrays.px), 3, K))
     for i in range(regions.n_frames):
         fan = fan_model(regions, i)
         p0, p1 = regions.offsets[i], regions.offsets[i + 1]
@@ -730,8 +785,8 @@ def unbaked(pd, regions, target, obj: BakedObjective) -> UnbakedObjective:
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
-def _evaluate_unbaked(c, T, breaks, Msp, s, omega, fi, poff, px, py, cen, scl, mode, wc, cache, alpha, delta,
-                      gamma, a, b, cc, tgt, N, lam_aff, tscale):
+def _evaluate_unbaked(c, T, breaks, Msp, ob, cache, a, b, cc, tgt, N, lam_aff, tscale):
+    s, omega, fi, poff, mode, wc, gamma = ob.s, ob.omega, ob.fi, ob.poff, ob.mode, ob.wc, ob.gamma
     n_span = len(breaks) - 1
     Asp = _span_poly(c, Msp, n_span)
     nr = a.shape[1]
@@ -754,7 +809,7 @@ def _evaluate_unbaked(c, T, breaks, Msp, s, omega, fi, poff, px, py, cen, scl, m
         v = pd * pd
         i = fi[jj]
         # distance term and wedge from the baked geometry (alpha only), torque term per dof
-        fdist, _, _ = _frame_eval(i, u, v, poff, px, py, cen, scl, mode, wc, cache, alpha, delta)
+        fdist, _, _ = _frame_eval(i, u, v, ob, cache)
         p0 = poff[i]
         kw = p0 + (cache[i] if mode[i] == 0 else 0)
         for q in range(K):
@@ -777,6 +832,5 @@ def evaluate_unbaked(u_obj: UnbakedObjective, spline, w=None) -> float:
     o = u_obj.baked
     w = spline.w if w is None else w
     return float(_evaluate_unbaked(spline.coefficients(w), spline.duration_of(w), spline.breaks,
-                                   spline.span_matrices, o.s, o.omega, o.fi, o.poff, o.px, o.py, o.cen, o.scale,
-                                   o.mode, o.wc, o.cache, o.alpha, o.delta, o.gamma, u_obj.a, u_obj.b, u_obj.c,
+                                   spline.span_matrices, o.arrays, _wedges(o, None), u_obj.a, u_obj.b, u_obj.c,
                                    u_obj.tgt, u_obj.N, u_obj.lam_aff, u_obj.scale))

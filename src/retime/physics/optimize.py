@@ -36,7 +36,7 @@ from numba import njit
 from scipy.optimize import minimize
 
 from ..errors import RetimeError
-from .objective import BakedObjective, evaluate
+from .objective import BakedObjective, ObjectiveWorkspace, evaluate
 from .spline import TimingSpline
 
 METHODS = ("lbfgs", "lbfgsb", "gd", "slsqp")
@@ -56,7 +56,8 @@ class SolveInfo:
 
 @dataclass
 class Problem:
-    """Objective + spline + constraints."""
+    """Objective + spline + constraints, and the evaluations' own workspace (the objective is shared,
+    its wedge hints are this problem's: one problem, one thread)."""
 
     obj: BakedObjective
     spline: TimingSpline
@@ -65,6 +66,11 @@ class Problem:
     w_max: float = 12.0
     gauge: float = 1e-3
     n_evals: int = 0
+    workspace: ObjectiveWorkspace | None = None  # default: a new one for this problem
+
+    def __post_init__(self):
+        if self.workspace is None:
+            self.workspace = ObjectiveWorkspace.for_objective(self.obj)
 
     def bounds(self):
         n = len(self.spline.w)
@@ -77,7 +83,7 @@ class Problem:
     def fun(self, w):
         """Objective and gradient (plus a tiny gauge fixing the free scales of w, see TimingSpline.gauge)."""
         self.n_evals += 1
-        val, g = evaluate(self.obj, self.spline, w, grad=True)
+        val, g = evaluate(self.obj, self.spline, w, grad=True, workspace=self.workspace)
         if self.gauge > 0:
             gv, gg = self.spline.gauge(w)
             val += self.gauge * gv
@@ -85,7 +91,7 @@ class Problem:
         return val, g
 
     def value(self, w):
-        return evaluate(self.obj, self.spline, w, grad=False)
+        return evaluate(self.obj, self.spline, w, grad=False, workspace=self.workspace)
 
     @property
     def n_eq(self):
@@ -481,9 +487,9 @@ class RetimingSession:
 
     def reconverge(self, max_iter=2000, tol=1e-5, max_seconds=None) -> SolveInfo:
         """Re-optimize from the current curve. The default ``tol`` (relative objective gain over ten
-        iterations) suits interaction: on 16_16 at half duration the curve then differs from the fully
-        converged one by at most about 4.5 ms of source time, half a 120 Hz frame (1e-6: 1 ms,
-        and about 1.6x the time; ``benchmarks/physics.py`` prints the deviation it measures)."""
+        iterations) suits interaction: the curve then stays within a fraction of a source frame of
+        the fully converged one (``benchmarks/physics.py`` measures how far, on 16_16 at half
+        duration)."""
         w, info = solve(self.problem, self.spline.w, method=self.method, max_iter=max_iter, tol=tol,
                         max_seconds=max_seconds)
         self.spline.w = w

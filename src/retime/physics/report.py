@@ -19,7 +19,7 @@ import numpy as np
 from ..io_util import atomic_write
 from .forces import FanModel
 from .objective import actuated_mask
-from .regions import residual_at
+from .frame_region import residual_at
 
 IN_REGION_TOL = 1e-2  # body weights of residual wrench beyond the region (about 7 N for 70 kg)
 

@@ -138,7 +138,8 @@ def feasible_fraction(curve, physics, fps: float) -> float | None:
     taken from the curve by finite differences (independently of the physics spline)."""
     if curve is None or physics is None:
         return None
-    from retime.physics.regions import polygon_distance, residual_at
+    from retime.physics.frame_region import residual_at
+    from retime.physics.polygon import polygon_distance
     from retime.physics.report import IN_REGION_TOL
 
     regions = physics.regions

@@ -245,47 +245,13 @@ def contact_names(report: dict) -> list[str]:
 
 # ---------------------------------------------------------------------- the region plot
 def _polygon_distance(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    """Euclidean distance from each point (N, 2) to a convex polygon (0 inside)."""
-    poly = _convex_ccw(poly)
-    n = len(poly)
-    if n == 0:
+    """Euclidean distance from each point (N, 2) to the convex hull of ``poly`` (0 inside)."""
+    from retime.physics.polygon import closest_points_numpy, convex_hull
+
+    hull = convex_hull(poly)
+    if len(hull) == 0:
         return np.full(len(points), np.inf)
-    if n == 1:
-        return np.linalg.norm(points - poly[0], axis=1)
-    a = poly
-    b = np.roll(poly, -1, axis=0)
-    ab = b - a
-    ap = points[:, None, :] - a[None, :, :]
-    denom = np.maximum((ab**2).sum(-1), 1e-300)
-    u = np.clip((ap * ab[None]).sum(-1) / denom, 0.0, 1.0)
-    closest = a[None] + u[..., None] * ab[None]
-    dist = np.linalg.norm(points[:, None, :] - closest, axis=-1).min(axis=1)
-    if n >= 3:
-        cross = ab[None, :, 0] * ap[..., 1] - ab[None, :, 1] * ap[..., 0]
-        inside = np.all(cross >= -1e-12, axis=1)
-        dist[inside] = 0.0
-    return dist
-
-
-def _convex_ccw(poly: np.ndarray) -> np.ndarray:
-    """The convex hull of the points, counter-clockwise (monotone chain)."""
-    pts = np.unique(np.asarray(poly, dtype=np.float64).reshape(-1, 2), axis=0)
-    if len(pts) < 3:
-        return pts
-
-    def cross(o, a, b):
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower, upper = [], []
-    for p in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
-            lower.pop()
-        lower.append(p)
-    for p in pts[::-1]:
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
-            upper.pop()
-        upper.append(p)
-    return np.array(lower[:-1] + upper[:-1])
+    return closest_points_numpy(hull, points, inside_tol=1e-12)[1]
 
 
 def pick_frame(report: dict) -> int:
@@ -351,7 +317,9 @@ def plot_regions(report: dict, frame: int | None, path=None, title: str | None =
         cb.set_label(heat_label, fontsize=8)
         cb.ax.tick_params(labelsize=7)
     if poly is not None and len(poly) >= 3:
-        hull = _convex_ccw(poly)
+        from retime.physics.polygon import convex_hull
+
+        hull = convex_hull(poly)
         ax.add_patch(Polygon(hull, closed=True, facecolor=(0.30, 0.64, 0.42, 0.18), edgecolor="#2f7d4f",
                              linewidth=2.0, zorder=2, label="feasible region"))
     elif poly is not None and len(poly):
@@ -487,10 +455,13 @@ def physics_frame_region(result, report: dict, frame: int, n: int = 120) -> None
     lo[1] = max(lo[1], -0.05 * span[1])
     U = np.linspace(lo[0], hi[0], n)
     V = np.linspace(lo[1], hi[1], n)
+    from retime.physics.objective import ObjectiveWorkspace
+
     obj = result.objective
+    hints = ObjectiveWorkspace.for_objective(obj)
     Z = np.empty((n, n))
     for a, v in enumerate(V):
         for b, u in enumerate(U):
-            d, f = frame_terms(obj, i, u, v)
-            Z[a, b] = obj.alpha * d * d + f
+            d, f = frame_terms(obj, i, u, v, hints)
+            Z[a, b] = obj.arrays.alpha * d * d + f
     rec["objective"] = {"pdd": U, "pd2": V, "values": Z}
