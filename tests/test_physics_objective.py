@@ -170,3 +170,20 @@ def test_unbaked_evaluation_equals_baked(setup):
     for seed in range(3):
         sp = _wiggly_spline(S, 0.9 * S, seed=seed)
         assert O.evaluate_unbaked(ub, sp) == pytest.approx(O.evaluate(obj, sp), rel=1e-9)
+
+
+def test_bake_reads_the_actuated_rows_in_place_exactly_as_from_a_copy(setup):
+    """The bake kernel reads N on the actuated rows frame by frame (no (n, rows, K) copy): the same
+    coefficients, bit for bit, as the kernel run on that copy."""
+    pd, rs, target = setup
+    obj = O.bake(pd, rs, target, alpha=1.0, beta=0.7, excess=False, metric="plane")
+    act = O.actuated_mask(pd)
+    a, b, c, tgt = (np.ascontiguousarray(np.asarray(x, float)[:, act]) for x in (pd.a, pd.b, pd.c, target))
+    copy = np.ascontiguousarray(np.asarray(pd.N, float)[:, act, :])
+    poff = np.asarray(rs.offsets, np.int64)
+    px, py = np.ascontiguousarray(rs.verts[:, 0]), np.ascontiguousarray(rs.verts[:, 1])
+    wc = np.zeros((len(px), 6))
+    O._bake_kernel(a, b, c, copy, np.arange(copy.shape[1]), tgt, poff, px, py, np.ascontiguousarray(rs.center),
+                   np.ascontiguousarray(rs.lam), np.ascontiguousarray(rs.center_lam), obj.arrays.mode, 0.7 / obj.tau_scale ** 2, wc)
+    assert act.sum() < act.size  # the root rows are left out, so the rows really are a subset
+    assert np.array_equal(wc, obj.arrays.wc)

@@ -178,3 +178,19 @@ def test_spline_fit_is_the_dense_least_squares_solution():
         y = 1.5 + np.sin(9 * tau) + 0.1 * rng.normal(size=tau.size)
         dense = np.linalg.lstsq(D.toarray(), y, rcond=None)[0]
         assert np.allclose(banded_least_squares(D, y), dense, atol=1e-9)
+
+
+def test_knot_removal_refits_like_the_dense_least_squares():
+    """remove_knot's banded refit against NumPy's dense lstsq of the same sampled speed."""
+    from scipy.interpolate import BSpline
+
+    rng = np.random.default_rng(4)
+    sp = TimingSpline.uniform(3.0, 40, 2.0)
+    sp.w = np.exp(0.3 * rng.normal(size=sp.w.size))
+    old = sp.copy()
+    sp.remove_knot(17)
+    xi1 = sp.xi[1:-1]
+    tau = np.linspace(0, 1, 40 * (len(sp.interior) + 3))
+    dense = np.linalg.lstsq(BSpline.design_matrix(tau, xi1, 2).toarray(), old.speed(tau * old.duration), rcond=None)[0]
+    assert len(sp.w) == len(old.w) - 1
+    assert np.allclose(sp.w, np.maximum(dense, 1e-3), atol=1e-9)

@@ -86,6 +86,8 @@ def _sample(m, u, v, ob, cache, d_tol):
     return g + pen, alpha > 0.0 and pen > alpha * d_tol
 
 
+# parallel=True doubles its compile (2.0 s -> 4.1 s, paid once, at install) and pays on long clips
+# (the 2-minute capture: 15.0 s instead of 18.5 s); each edge writes only its own cells
 @njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
 def _edge_costs(nodes, times, w, band, ob, d_tol, u_max, cost, outt, dur):
     """Objective cost[e, j, k], output time outside the regions outt[e, j, k] and output time

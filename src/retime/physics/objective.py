@@ -188,7 +188,8 @@ def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_f
     a = np.ascontiguousarray(np.asarray(pd.a, dtype=float)[:, act])
     b = np.ascontiguousarray(np.asarray(pd.b, dtype=float)[:, act])
     c = np.ascontiguousarray(np.asarray(pd.c, dtype=float)[:, act])
-    N = np.ascontiguousarray(np.asarray(pd.N, dtype=float)[:, act, :])
+    N = np.ascontiguousarray(pd.N, dtype=float)  # not N[:, act]: a copy of it was the bake's peak (1.5 GB at 72,000 frames)
+    rows = np.flatnonzero(act).astype(np.int64)
     tgt = np.ascontiguousarray(np.asarray(target, dtype=float)[:, act])
     if tau_scale is None:
         tau_scale = float(np.sqrt(np.mean(np.sum(tgt ** 2, axis=1)))) or 1.0
@@ -203,7 +204,7 @@ def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_f
     mode = _fan_modes(poff, px, py, cen)
     mode = np.where((mode == 0) & ~has_contact, 1, mode).astype(np.int64)
     wc = np.zeros((len(px), 6))
-    _bake_kernel(a, b, c, N, tgt, poff, px, py, cen, lam, clam, mode, beta / tau_scale ** 2, wc)
+    _bake_kernel(a, b, c, N, rows, tgt, poff, px, py, cen, lam, clam, mode, beta / tau_scale ** 2, wc)
     if excess:
         U = float(u_max if u_max is not None else regions.options.u_max)
         vlo, vhi = v_range if v_range is not None else (0.0, float(regions.options.v_max))
@@ -334,15 +335,19 @@ def _coefs(A, B, D, scale, out):
 
 
 @njit(cache=True)
-def _bake_kernel(a, b, c, N, tgt, poff, px, py, cen, lam, clam, mode, scale, wc):
+def _bake_kernel(a, b, c, N, rows, tgt, poff, px, py, cen, lam, clam, mode, scale, wc):
+    """wc per vertex; N (n, nv, K) is read on the actuated ``rows`` one frame at a time."""
     n, nr = a.shape
     A = np.empty(nr)
     B = np.empty(nr)
     D = np.empty(nr)
+    Ni = np.empty((nr, K))
     for i in range(n):
         p0, p1 = poff[i], poff[i + 1]
         nvx = p1 - p0
-        Fc = N[i] @ clam[i]
+        for r in range(nr):
+            Ni[r] = N[i, rows[r]]
+        Fc = Ni @ clam[i]
         if mode[i] != 0:
             for r in range(nr):
                 A[r] = a[i, r]
@@ -353,7 +358,7 @@ def _bake_kernel(a, b, c, N, tgt, poff, px, py, cen, lam, clam, mode, scale, wc)
             continue
         F = np.empty((nvx, nr))
         for k in range(nvx):
-            F[k] = N[i] @ lam[p0 + k]
+            F[k] = Ni @ lam[p0 + k]
         cu, cv = cen[i, 0], cen[i, 1]
         for k in range(nvx):
             l = (k + 1) % nvx

@@ -221,10 +221,9 @@ class TimingSpline:
         self._prepare()
         xi1 = self.xi[1:-1]
         tau = np.linspace(0, 1, 40 * (len(self.interior) + 3))
-        D = BSpline.design_matrix(tau, xi1, 2).toarray()
+        D = BSpline.design_matrix(tau, xi1, 2)  # sparse: a dense one is 40 K^2 doubles for K knots
         y = old.speed(tau * T)
-        w, *_ = np.linalg.lstsq(D, y, rcond=None)
-        self.w = np.maximum(w, w_min)
+        self.w = np.maximum(banded_least_squares(D, y), w_min)
 
 
 def banded_least_squares(D, y, bandwidth=2):
