@@ -338,6 +338,7 @@ def _coefs(A, B, D, scale, out):
 def _bake_kernel(a, b, c, N, rows, tgt, poff, px, py, cen, lam, clam, mode, scale, wc):
     """wc per vertex; N (n, nv, K) is read on the actuated ``rows`` one frame at a time."""
     n, nr = a.shape
+    K = N.shape[2]
     A = np.empty(nr)
     B = np.empty(nr)
     D = np.empty(nr)
