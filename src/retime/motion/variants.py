@@ -11,7 +11,7 @@ give it the same timing curve (the tests check this on real files):
 * :func:`six_channels` - position channels on every joint, holding the bone offset.
 
 A variant stands for a file: write it out and read it back (or pass it to
-:func:`retime.motion.with_detected_frame`) before retiming it, so that its up axis, units and limbs
+:func:`retime.motion.files.with_detected_frame`) before retiming it, so that its up axis, units and limbs
 are detected as a reader would.
 """
 from __future__ import annotations
