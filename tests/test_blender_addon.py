@@ -53,6 +53,8 @@ FAILURES = {  # name: (case fields, what the one-line report must say)
     "both_duration_and_scale": ({"op": {"method": "linear", "duration": 1.0, "scale": 0.5}}, "not both"),
     "cli_error": ({"op": {"method": "linear"}}, "retime linear: error: say how to retime"),
     "unknown_bone_mass": ({"op": {"method": "physics", "mass": "tail=2", **HALF}}, "no bone named 'tail'"),
+    "preference_missing": ({"preference": "/nonexistent/bin/retime", "op": {"method": "linear", **HALF}},
+                           "set in the add-on's preferences, /nonexistent/bin/retime, does not exist"),
 }
 
 
@@ -79,6 +81,9 @@ def played(tmp_path_factory):
             cases.append({"name": name, "bvh": str(SHARED_BVH / file), "op": {**op, "exchange_folder": str(tmp / name)}})
     for name, (fields, _) in FAILURES.items():
         cases.append({"name": name, "bvh": str(tmp / "16_06.bvh"), **fields})
+    # the preference comes first: RETIME_EXECUTABLE pointing nowhere is not even looked at
+    cases.append({"name": "preference_first", "bvh": str(tmp / "16_06.bvh"), "preference": str(exe),
+                  "env": {"RETIME_EXECUTABLE": "/nonexistent/retime"}, "op": {"method": "linear", **HALF}})
     (tmp / "cases.json").write_text(json.dumps(cases))
     addon = build_addon(tmp / "dist")
     run_bpy("addon_driver.py", addon, tmp / "cases.json", tmp / "results.json",
@@ -167,6 +172,10 @@ def test_mixamo_rigs(played, name):
     if not SHARED_BVH.is_dir():
         pytest.skip("../shared/data/bvh-dev is absent")
     check_against_cli(played, name, MIXAMO[name][1])
+
+
+def test_preference_comes_before_the_environment(played):
+    assert played[1]["preference_first"]["status"] == ["FINISHED"], played[1]["preference_first"]
 
 
 @pytest.mark.parametrize("name", list(FAILURES))

@@ -182,3 +182,26 @@ def test_python_without_bpy_one_line(monkeypatch, tmp_path, capsys):
         blender_io.bpy_command.cache_clear()
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert "has no bpy" in line and "a.fbx" in line
+
+
+def test_blender_on_path_runs_the_bridge(characters, monkeypatch, tmp_path):
+    """With no bpy Python found, retime runs ``blender --background ... --python bridge.py -- ARGS``: here a
+    stand-in 'blender' that runs the script with the bpy venv, so the command line retime builds is used."""
+    fake = tmp_path / "blender"
+    fake.write_text("#!/bin/sh\n"
+                    'while [ "$1" != "--python" ]; do shift; done\n'
+                    'script=$2; shift 2\n'
+                    f'exec {blender_env(characters)["RETIME_BPY_PYTHON"]} "$script" "$@"\n')
+    fake.chmod(0o755)
+    monkeypatch.delenv("RETIME_BPY_PYTHON", raising=False)
+    monkeypatch.setenv("PATH", f"{tmp_path}:{os.environ['PATH']}")
+    monkeypatch.setattr(blender_io, "_venv_places", lambda: [])
+    monkeypatch.setattr(blender_io.importlib.util, "find_spec", lambda name: None)
+    blender_io.bpy_command.cache_clear()
+    try:
+        command = blender_io.bpy_command()
+        motion = load_motion(characters / "jump.fbx")
+    finally:
+        blender_io.bpy_command.cache_clear()
+    assert command[0] == str(fake) and "--background" in command and command[-1] == "--"
+    assert (motion.n_frames, motion.fps) == (407, 120)

@@ -3,7 +3,7 @@ one Blender process for all of them. ``python addon_driver.py ADDON.zip CASES.js
 
 Each case: {"name", "bvh", "op": operator keywords, "markers": [[frame, name], ...], "select": "armature" |
 "none" | "mesh", "drop_action": bool, "env": {variable: value or null}, "transform": {object property:
-value}, "rotate_mode", "reference_bvh"}. The result per case: "status"
+value}, "rotate_mode", "reference_bvh", "preference": the add-on's retime path}. The result per case: "status"
 (the operator's return or "RuntimeError"), "error" (the report of a failed call), and for a success an
 .npz beside RESULTS.json with the bones' world head positions on every output frame ("heads", Blender's
 axes), their "names", the output "frames", and for an NLA strip the strip-time keys ("strip_time").
@@ -75,6 +75,8 @@ def play(case, folder):
     saved = {k: os.environ.get(k) for k in case.get("env", {})}
     for k, v in case.get("env", {}).items():
         os.environ.pop(k, None) if v is None else os.environ.__setitem__(k, v)
+    prefs = bpy.context.preferences.addons[__package_name__].preferences
+    prefs.retime_path = case.get("preference", "")
     try:
         arm = setup(case)
         original = arm.animation_data.action if arm.animation_data else None

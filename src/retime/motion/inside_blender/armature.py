@@ -231,10 +231,10 @@ def new_action(obj, name):
     """A new empty action for ``obj``: (action, slot or None, the F-curve collection to add curves to)."""
     import bpy
 
-    action = bpy.data.actions.new(name)
-    if hasattr(action, "slots"):
-        from bpy_extras import anim_utils
+    from bpy_extras import anim_utils
 
+    action = bpy.data.actions.new(name)
+    if hasattr(anim_utils, "action_ensure_channelbag_for_slot"):  # 4.4+ (4.3's slots were experimental)
         slot = action.slots.new(obj.id_type, obj.name)
         return action, slot, anim_utils.action_ensure_channelbag_for_slot(action, slot).fcurves
     return action, None, action.fcurves
