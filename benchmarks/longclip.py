@@ -17,23 +17,10 @@ TAKES = ("13_29", "13_17")
 CROSSFADE_S = 0.5
 
 
-def _slerp(q0, q1, w):
-    """Per-element slerp of unit quaternions (..., 4) with weights w broadcast on the last axis."""
-    dot = np.sum(q0 * q1, axis=-1, keepdims=True)
-    q1 = np.where(dot < 0, -q1, q1)
-    dot = np.abs(dot).clip(-1.0, 1.0)
-    theta = np.arccos(dot)
-    s = np.sin(theta)
-    small = s < 1e-6
-    a = np.where(small, 1.0 - w, np.sin((1.0 - w) * theta) / np.where(small, 1.0, s))
-    b = np.where(small, w, np.sin(w * theta) / np.where(small, 1.0, s))
-    q = a * q0 + b * q1
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
-
-
 def long_capture(minutes: float, shared: Path = SHARED):
     """A Motion of ``minutes`` minutes at 120 Hz made of subject 13's long takes (see above)."""
     from retime.motion import load_motion
+    from retime.motion.quat import slerp
 
     takes = [load_motion(shared / f"{t}.amc") for t in TAKES]
     fps = takes[0].fps
@@ -52,7 +39,7 @@ def long_capture(minutes: float, shared: Path = SHARED):
         shift[up] = 0.0
         t[:, 0] += shift
         w = (np.arange(1, fade + 1) / (fade + 1))[:, None, None]
-        r[:fade] = _slerp(rot[-1][-fade:], r[:fade], w)
+        r[:fade] = slerp(rot[-1][-fade:], r[:fade], w[..., 0])
         t[:fade] = (1 - w) * tra[-1][-fade:] + w * t[:fade]
         rot[-1] = rot[-1][:-fade]
         tra[-1] = tra[-1][:-fade]
