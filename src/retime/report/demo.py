@@ -98,15 +98,15 @@ SETTINGS = {
 }
 
 
+NOTICE = ("guided", "physics")  # the methods with numba kernels, whose Settings have ``progress``
+
+
 def run_method(name: str, motion, duration: float) -> MethodResult:
     """One method through the contract of :mod:`retime.method`, to ``duration`` (progress on stderr)."""
     from retime.method import Request, settings_type, solve
 
-    settings = settings_type(name)()
-    if hasattr(settings, "progress"):
-        from dataclasses import replace
-
-        settings = replace(settings, progress=True)  # the compile notice: a first run is slow
+    # defaults, with the compile notice where a method compiles kernels (a first run is slow)
+    settings = settings_type(name)(**({"progress": True} if name in NOTICE else {}))
     result = solve(name, motion, Request(duration=duration, settings=settings))
     timings = result.report.summary["timings"]
     out = MethodResult(name, curve=result.curve, seconds=timings.get("method"), settings=SETTINGS.get(name, ""))
