@@ -189,12 +189,11 @@ def run_demo(
                     from retime.physics.report import write_report as write_physics_report
 
                     rep = out / f"{stem}_{name}_report.json"
-                    data = dict(r.raw_report if r.raw_report is not None else r.report)
-                    regions = getattr(r.physics, "regions", None)
-                    if regions is not None and "regions" not in data:
-                        # the polygons per source frame, so that `retime plot --regions` can draw any frame
-                        data["regions"] = [np.round(np.asarray(regions.polygon(i), dtype=float), 6).tolist()
-                                           for i in range(regions.n_frames)]
+                    data = dict(r.raw_report)
+                    regions = r.physics.regions
+                    # the polygons per source frame, so that `retime plot --regions` can draw any frame
+                    data["regions"] = [np.round(np.asarray(regions.polygon(i), dtype=float), 6).tolist()
+                                       for i in range(regions.n_frames)]
                     write_physics_report(data, rep)
                     r.files["report"] = rep.name
             results.append(r)
