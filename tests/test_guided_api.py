@@ -174,3 +174,26 @@ def test_pruned_path_of_guided_solve_is_exact(jump, monkeypatch):
     assert pruned.stats.pruned_states is not None and pruned.stats.pruned_states <= pruned.stats.states
     assert pruned.objective == pytest.approx(plain.objective, rel=1e-12)
     assert np.array_equal(pruned.frames, plain.frames) or pruned.objective == pytest.approx(plain.objective)
+
+
+def test_upper_bound_falls_back_when_its_corridor_cannot_hold_the_warp(jump, monkeypatch):
+    """The exact search's upper bound (long clips) goes on by the heuristic when the Lagrangian path's
+    corridor is infeasible, and the exact warp is the same."""
+    import retime.guided.api as api
+    import retime.guided.heuristic as heuristic
+    from retime.guided import dp
+
+    want = guided_solve(jump, scale=0.5).frames
+
+    real, calls = heuristic.corridor, []
+
+    def infeasible_first(*a, **k):  # the Lagrangian path's corridor is the first one built
+        calls.append(1)
+        if len(calls) == 1:
+            raise dp.InfeasibleWarp("no warp in this corridor")
+        return real(*a, **k)
+
+    monkeypatch.setattr(api, "PRUNE_STATES", 0)  # every problem takes the upper-bound path
+    monkeypatch.setattr(heuristic, "corridor", infeasible_first)
+    got = guided_solve(jump, scale=0.5)
+    assert len(calls) > 1 and got.exact and np.array_equal(got.frames, want)

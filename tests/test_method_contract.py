@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from retime.errors import RetimeError
-from retime.method import METHODS, Request, register, settings_type, solve
+from retime.method import METHODS, Request, settings_type, solve
 
 COMMON = {"method", "source_duration", "duration", "output_frames", "mean_speed", "phases", "timings", "warnings",
           "notes"}
@@ -93,12 +93,10 @@ def test_a_new_method_is_one_module(tmp_path, monkeypatch, short_jump):
             s = request.settings_or(Settings)
             S = motion.duration
             curve = TimingCurve([0.0, s.hold, s.hold + S], [0.0, 0.0, S])
-            return Result(curve, Report(summary(NAME, curve, keytime_phases(curve), {"method": 0.0},
-                                                output_frames=curve.n_frames(motion.fps))))
+            return Result(curve, Report(summary(NAME, curve, motion.fps, keytime_phases(curve), {"method": 0.0})))
     '''))
     monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setitem(METHODS, "hold_start", "hold_start")
-    register("hold_start", "hold_start")
+    monkeypatch.setitem(METHODS, "hold_start", "hold_start")  # the registry: name -> module
     r = solve("hold_start", short_jump, Request())
     assert r.curve.duration == pytest.approx(short_jump.duration + 0.5)
     assert r.curve(0.25) == 0.0 and r.report.summary["method"] == "hold_start"

@@ -53,25 +53,6 @@ def _to_quaternions(prop, values, order):
     return [Euler(v, order).to_quaternion() for v in values]
 
 
-def _from_quaternions(prop, quats, order):
-    from mathutils import Euler
-
-    out, prev = [], None
-    for q in quats:
-        if prop == "rotation_quaternion":
-            if prev is not None and q.dot(prev) < 0:
-                q = -q  # the hemisphere of the previous key: Blender interpolates the components
-            prev = q
-            out.append(tuple(q))
-        elif prop == "rotation_axis_angle":
-            axis, angle = q.to_axis_angle()
-            out.append((angle, *axis))
-        else:
-            prev = q.to_euler(order, prev) if prev is not None else q.to_euler(order)
-            out.append(tuple(prev))
-    return np.array(out)
-
-
 def resample(obj, action, slot, source_frames, positions, key_frames, name):
     """A new action keyed at ``key_frames`` with the source played at ``positions`` (i0, i1, w: between
     source frames i0 and i1 at weight w, as retime.warp.apply_timing): rotations slerped (quaternion bones
@@ -94,8 +75,9 @@ def resample(obj, action, slot, source_frames, positions, key_frames, name):
             current = list(getattr(owner, prop))
             values = np.column_stack([sampled.get(i, np.full(len(source_frames), current[i])) for i in range(size)])
             order = owner.rotation_mode if owner.rotation_mode not in ("QUATERNION", "AXIS_ANGLE") else "XYZ"
+            mode = {"rotation_quaternion": "QUATERNION", "rotation_axis_angle": "AXIS_ANGLE"}.get(prop, order)
             quats = _to_quaternions(prop, values, order)
-            out = _from_quaternions(prop, [quats[a].slerp(quats[b], t) for a, b, t in zip(i0, i1, w)], order)
+            out = armature.quaternions_to_mode([quats[a].slerp(quats[b], t) for a, b, t in zip(i0, i1, w)], mode)
             for i in range(size):
                 armature.write_curve(new_curves, path, i, group, key_frames, out[:, i])
         else:

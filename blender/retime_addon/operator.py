@@ -86,8 +86,8 @@ class Job:
             raise RetimeAddonError(f"the armature {obj.name!r} has no action to retime: assign one in the Action Editor")
         self.obj, self.action = obj, adt.action
         self.slot = getattr(adt, "action_slot", None)
-        self.fps = scene.render.fps / scene.render.fps_base
-        self.start, self.end = (int(round(f)) for f in self.action.frame_range)
+        self.fps = armature.scene_fps(scene)
+        self.start, self.end = armature.frame_range(self.action)
         if self.end - self.start < 1:
             raise RetimeAddonError(f"the action {self.action.name!r} has a single frame: there is no timing to change")
         if props.duration > 0 and props.scale > 0:
@@ -133,7 +133,7 @@ class Job:
             argv += ["--keytime", f"{src!r}={dst!r}"]
         if self.reference is not None:
             ref_slot = self._slot_for(self.reference)
-            frames = tuple(int(round(f)) for f in self.reference.frame_range)
+            frames = armature.frame_range(self.reference)
             reference = os.path.join(self.folder, "reference.bvh")
             self._export(context, self.reference, ref_slot, frames, reference)
             argv += ["--reference", reference]

@@ -17,5 +17,5 @@ def _controller():
 
 
 def single_threaded_blas():
-    """A context manager: BLAS on one thread inside, as it was after."""
+    """A context manager: BLAS on one thread inside; its thread count is restored on exit."""
     return _controller().limit(limits=1, user_api="blas")

@@ -36,6 +36,16 @@ def check_not_input(output, *inputs):
             raise RetimeError(f"{output}: refusing to overwrite the input file {path}; choose another output path")
 
 
+def _output_folder(path: Path) -> Path:
+    """The folder ``path`` will be written in, checked to exist; ``path`` must not be a folder."""
+    directory = path.parent if str(path.parent) else Path(".")
+    if not directory.is_dir():
+        raise RetimeError(f"{path}: output folder {directory} does not exist; create it first")
+    if path.is_dir():
+        raise RetimeError(f"{path}: is a folder; give a file name for the output")
+    return directory
+
+
 def check_outputs(outputs, inputs=()):
     """Check a command's outputs before any work (see the module docstring). ``outputs`` and
     ``inputs`` may hold None (an option not given)."""
@@ -44,11 +54,7 @@ def check_outputs(outputs, inputs=()):
         if output is None:
             continue
         path = Path(output)
-        directory = path.parent if str(path.parent) else Path(".")
-        if not directory.is_dir():
-            raise RetimeError(f"{output}: output folder {directory} does not exist; create it first")
-        if path.is_dir():
-            raise RetimeError(f"{output}: is a folder; give a file name for the output")
+        directory = _output_folder(path)
         if path.exists() and not path.is_file():
             raise RetimeError(f"{output}: exists and is not a regular file (a device, FIFO or socket); "
                               "retime only replaces regular files")
@@ -117,11 +123,7 @@ def _umask() -> int:
 def atomic_write(path, mode="w", newline=None):
     """Open a temporary file beside ``path``; rename it over ``path`` only if the block succeeds."""
     path = Path(path)
-    directory = path.parent if str(path.parent) else Path(".")
-    if not directory.is_dir():
-        raise RetimeError(f"{path}: output folder {directory} does not exist")
-    if path.is_dir():
-        raise RetimeError(f"{path}: is a folder; give a file name for the output")
+    directory = _output_folder(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
     try:
         if "b" in mode:

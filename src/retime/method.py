@@ -15,14 +15,14 @@ A method is one module (``retime.linear.method``, ``retime.guided.method``,
 * ``Settings``: a dataclass of the method's own options, every field with a default;
 * ``solve(motion, request) -> Result``.
 
-Adding a method is writing such a module and naming it in :data:`METHODS` (or :func:`register`).
+Adding a method is writing such a module and naming it in :data:`METHODS`.
 The command line, the demo, the editor and the batch runner call methods only through here.
 """
 from __future__ import annotations
 
 import importlib
 import math
-from dataclasses import asdict, dataclass, field, is_dataclass
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 from .errors import RetimeError
@@ -91,14 +91,6 @@ class Report:
     summary: dict
     frames: list = field(default_factory=list)
 
-    @property
-    def warnings(self) -> list[str]:
-        return self.summary.get("warnings", [])
-
-    @property
-    def notes(self) -> list[str]:
-        return self.summary.get("notes", [])
-
     def to_json(self) -> dict:
         return {"summary": self.summary, "frames": self.frames}
 
@@ -115,19 +107,18 @@ class Result:
     detail: Any = None
 
 
-def summary(method: str, curve: TimingCurve, phases: list, timings: dict, warnings=(), notes=(), **extra) -> dict:
-    """A report summary with the fields every method gives (see :class:`Report`)."""
+def summary(method: str, curve: TimingCurve, fps: float, phases: list, timings: dict, warnings=(), notes=(),
+            **extra) -> dict:
+    """A report summary with the fields every method gives (see :class:`Report`); ``fps``: the
+    output's frame rate."""
     T, S = curve.duration, curve.source_duration
     out = {"method": method, "source_duration": round(float(S), 6), "duration": round(float(T), 6),
+           "output_frames": curve.n_frames(fps),
            "mean_speed": round(float(S / T), 4) if T > 0 else None,
            "phases": phases, "timings": {k: round(float(v), 4) for k, v in timings.items()},
            "warnings": list(warnings), "notes": list(notes)}
     out.update(extra)
     return out
-
-
-def names() -> list[str]:
-    return list(METHODS)
 
 
 def module(name: str):
@@ -147,11 +138,7 @@ def solve(name: str, motion, request: Request | None = None) -> Result:
     return module(name).solve(motion, request)
 
 
-def register(name: str, module_path: str) -> None:
-    """Make a method module (``NAME``, ``Settings``, ``solve``) callable by name."""
-    METHODS[name] = module_path
-
-
-def settings_dict(settings) -> dict:
-    """A method's settings as plain values (for reports and logs)."""
-    return asdict(settings) if is_dataclass(settings) else {}
+def settings_record(settings, leave_out=()) -> dict:
+    """A method's settings for its report, by reference (``asdict`` would deep-copy a reference
+    motion or a contact table only to drop it)."""
+    return {f.name: getattr(settings, f.name) for f in fields(settings) if f.name not in leave_out}

@@ -8,7 +8,9 @@ so ``pip install -e .`` and a wheel build both do), and anyone can run it by han
 
 It compiles by running the methods themselves on a bundled clip: guided (exact and heuristic) and
 physics (fixed and free duration, with and without changed gravity), so every kernel gets
-exactly the signatures and compiler settings of a real run, through the one code path there is.
+exactly the signatures and compiler settings of a real run (it calls `guided_solve` and
+`physics_warp`, which `retime.method.solve` calls too; physics on one process, so that the pool
+does not compile the region kernels once per worker).
 numba stores the machine code beside each source file (``__pycache__``, or ``NUMBA_CACHE_DIR``)
 keyed by a hash of the source, the Python and numba versions and this CPU; a run whose key
 differs (another CPU, an edited file) compiles as before, so a stale cache can cost time, never

@@ -102,13 +102,13 @@ class TimingCurve:
             ss = self(ts)
         # first index with ss >= s (to rounding: a rise of 1e-38 over a second is a hold, and a time
         # inside it inverts to the hold's start), then interpolate inside that segment
-        eps = 1e-12 * max(1.0, float(abs(ss[-1])))
         if self._pchip is not None:
             k = np.clip(np.searchsorted(ss, s, side="left"), 1, len(ss) - 1)
             return self._bisect(ts[k - 1], ts[k], s)
+        eps = 1e-12 * max(1.0, float(abs(ss[-1])))
         k = np.clip(np.searchsorted(ss, s - eps, side="left"), 1, len(ss) - 1)
         s0, s1, t0, t1 = ss[k - 1], ss[k], ts[k - 1], ts[k]
-        # s1 == s0 only when s is at (or before) the first sample: the curve holds there from t = 0
+        # a hold (s1 - s0 within eps) plays s from its start
         w = np.where(s1 - s0 > eps, (s - s0) / np.where(s1 - s0 > eps, s1 - s0, 1.0), 0.0)
         return t0 + np.clip(w, 0.0, 1.0) * (t1 - t0)
 

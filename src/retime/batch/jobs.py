@@ -1,4 +1,4 @@
-"""The clips of a batch: files, folders walked for .bvh/.amc, and jobs files (.csv or .toml) with
+"""The clips of a batch: files, folders walked for motion files (.bvh, .amc; .fbx, .glb, .gltf with bpy), and jobs files (.csv or .toml) with
 per-clip overrides (duration, scale, keytimes, reference)."""
 from __future__ import annotations
 
@@ -9,8 +9,9 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path, PurePosixPath
 
 from ..errors import RetimeError
+from ..motion import READABLE
 
-MOTION_SUFFIXES = (".bvh", ".amc")
+MOTION_SUFFIXES = READABLE  # what the single-clip commands read (FBX and glTF with bpy)
 JOBS_SUFFIXES = (".csv", ".toml")
 JOB_FIELDS = ("motion", "duration", "scale", "keytimes", "reference")
 
@@ -67,7 +68,7 @@ def find_clips(inputs, defaults: Defaults, outdir: Path | None = None) -> list[C
         else:
             raise RetimeError(f"{text}: not a motion (.bvh, .amc), a folder or a jobs file (.csv, .toml)")
     if not clips:
-        raise RetimeError("no clips found: give .bvh or .amc files, folders holding them, or a jobs file")
+        raise RetimeError("no clips found: give motion files (.bvh, .amc, or .fbx/.glb/.gltf with bpy), folders holding them, or a jobs file")
     return _distinct_names(clips)
 
 

@@ -147,8 +147,9 @@ def run_batch(clips: list[Clip], outdir: Path, method: str, *, gravity_scale: fl
         if i not in results:
             results[i] = {"status": "failed", "error": unfinished, "seconds": None}
     manifest.save()
-    rows = [clip_row(shown[i], **results[i], outputs=outputs[i]) for i in range(len(clips))]
-    curves = [read_warp(o["warp"]) if r["status"] != "failed" and "warp" in o else None for o, r in zip(outputs, rows)]
+    curves = [read_warp(outputs[i]["warp"]) if results[i]["status"] != "failed" and "warp" in outputs[i] else None
+              for i in range(len(clips))]  # each warp file read once, for the row and the page
+    rows = [clip_row(shown[i], **results[i], outputs=outputs[i], curve=curves[i]) for i in range(len(clips))]
     if method == "check":  # the library ranked from least to most physical (failed clips last)
         order = sorted(range(len(rows)), key=lambda i: (rows[i]["status"] == "failed",
                                                         -float(rows[i]["off_share"] or 0.0)))

@@ -14,13 +14,14 @@ COLUMNS = ("input", "status", "error", "source_duration", "output_duration", "fl
            "feasible_fraction", "least_duration", "source_physical", "off_share", "seconds")
 
 
-def clip_row(input_text: str, status: str, error: str, seconds: float | None, outputs: dict[str, Path]) -> dict:
-    """A summary row; durations and physics figures come from the clip's warp CSV and report."""
+def clip_row(input_text: str, status: str, error: str, seconds: float | None, outputs: dict[str, Path],
+             curve=None) -> dict:
+    """A summary row; durations and physics figures come from the clip's warp (``curve``, the rows
+    :func:`read_warp` read) and its report."""
     row = dict.fromkeys(COLUMNS, "")
     row.update(input=input_text, status=status, error=error, seconds="" if seconds is None else f"{seconds:.2f}")
     if status == "failed":
         return row
-    curve = read_warp(outputs["warp"]) if "warp" in outputs else None
     if curve is not None:
         row["output_duration"], row["source_duration"] = f"{curve[-1][0]:.6g}", f"{curve[-1][1]:.6g}"
     if "report" in outputs:

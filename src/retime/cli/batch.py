@@ -26,7 +26,7 @@ def register(sub):
                     "batch goes on.",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("inputs", nargs="+", metavar="INPUT",
-                   help=".bvh or .amc files, folders (walked for them), or jobs files (.csv, .toml)")
+                   help="motion files (.bvh, .amc; .fbx, .glb, .gltf with bpy), folders (walked for them), or jobs files (.csv, .toml)")
     p.add_argument("-o", "--output", required=True, metavar="OUTDIR", help="folder for the outputs (created if needed)")
     p.add_argument("--method", required=True, choices=("linear", "guided", "physics", "check"),
                    help="the retiming method, or check: each clip's physical plausibility as captured, ranked")

@@ -9,7 +9,7 @@ from ..errors import RetimeError
 from ..io_util import check_not_input, check_outputs
 from ..motion import WRITABLE, load_motion, save_motion
 from ..motion.blender_io import SCENE_SUFFIXES, require_bpy
-from ..warp import TimingCurve, scale_warp, snap_duration
+from ..warp import TimingCurve
 
 
 def add_motion_args(p):
@@ -129,15 +129,6 @@ def check_found_inputs(args, *motions):
     for k in OUTPUT_OPTIONS:
         if getattr(args, k, None):
             check_not_input(getattr(args, k), *found)
-
-
-def target_duration(args, motion):
-    """Output duration from --duration / --scale (None if neither), on the output frame grid."""
-    if getattr(args, "duration", None) is not None:
-        return snap_duration(args.duration, motion.fps)
-    if getattr(args, "scale", None) is not None:
-        return scale_warp(motion.duration, args.scale, motion.fps).duration
-    return None
 
 
 def write_outputs(args, motion, curve: TimingCurve, retimed):

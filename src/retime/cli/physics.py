@@ -4,7 +4,8 @@ from __future__ import annotations
 import argparse
 import math
 
-from ..physics.method import MASS_FACTORS, MAX_GRAVITY
+from ..physics.constants import MAX_GRAVITY, G
+from ..physics.method import MASS_FACTORS
 from ..warp import apply_timing
 from .common import add_duration_args, add_motion_args, add_output_args, check_output, load_input, positive_float, \
     write_outputs
@@ -37,8 +38,8 @@ def _vector3(text):
 
 def _gravity_scale(text):
     g = positive_float(text)
-    if g * 9.81 > MAX_GRAVITY:
-        raise argparse.ArgumentTypeError(f"at most {MAX_GRAVITY / 9.81:.0f} (a hundred g), got {text}")
+    if g * G > MAX_GRAVITY:
+        raise argparse.ArgumentTypeError(f"at most {MAX_GRAVITY / G:.0f} (a hundred g), got {text}")
     return g
 
 
@@ -105,7 +106,7 @@ def run(args):
                         progress=not args.quiet)
     answer = solve("physics", m, Request(args.duration, args.scale, args.keytime, settings))
     result = answer.detail
-    duration = Request(args.duration, args.scale).output_duration(m)
+    duration = None if args.duration is None and args.scale is None else answer.curve.duration  # None: free
     write_outputs(args, m, result.curve, apply_timing(m, result.curve))
     if args.report:
         write_report(result.report, args.report)

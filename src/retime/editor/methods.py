@@ -411,8 +411,13 @@ def _physics_prepared(clip, key, status, gone=lambda: False):
             sk = clip.motion.skeleton
             root = sk.index(part)
             masses = {sk.names[j]: factor for j in range(sk.n_joints) if _descends(sk.parents, j, root)}
-        out = prepare(clip.motion, gravity=(0.0, -gravity, 0.0), mass_factors=masses, objective=objective,
-                      alpha=alpha, terms=terms, cancel=gone)
+        try:
+            out = prepare(clip.motion, gravity=(0.0, -gravity, 0.0), mass_factors=masses, objective=objective,
+                          alpha=alpha, terms=terms, cancel=gone)
+        except BaseException:  # failed or cancelled: nothing cached, so no lock kept for it either
+            with _CACHE_LOCK:
+                _SETTING_LOCKS.pop(cache_key, None)
+            raise
         with _CACHE_LOCK:
             if len(_PHYSICS_CACHE) >= 6:
                 old = next(iter(_PHYSICS_CACHE))

@@ -97,17 +97,15 @@ def solve_upper_bound(problem: WarpProblem, F, stats: SolveStats | None = None, 
     hist = dp.lagrange_multipliers(F, problem.m)
     stats.extra["lagrange"] = hist
     path = dp.lagrange_path(F, problem.m, hist) if hist else None
+    stats.optimization_s += time.perf_counter() - t0  # the multipliers and their path; _refine adds its DPs
     radius = 6 * problem.s if radius is None else int(radius)
     sol = None
     if path is not None and len(path) >= 2:
-        band = corridor(problem, np.linspace(0, problem.m - 1, len(path)), path, np.arange(len(path)), radius)
-        stats.optimization_s += time.perf_counter() - t0
-        try:
+        try:  # a corridor or refinement the warp cannot keep to: the heuristic instead
+            band = corridor(problem, np.linspace(0, problem.m - 1, len(path)), path, np.arange(len(path)), radius)
             sol = _refine(problem, lambda band: F, band, radius, refine, stats)
         except dp.InfeasibleWarp:
             sol = None
-    else:
-        stats.optimization_s += time.perf_counter() - t0
     if sol is None:
         sol, F, stats = solve_heuristic(problem, F, stats=stats)
     return sol, F, stats

@@ -4,7 +4,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from ..method import Report, Request, Result, settings_dict, summary
+from ..method import Report, Request, Result, settings_record, summary
 from ..phases import keytime_phases
 from .api import guided_solve
 from .features import FeatureWeights
@@ -45,11 +45,10 @@ def solve(motion, request: Request) -> Result:
     stats = result.stats
     timings = {"scores": stats.objective_s, "search": stats.optimization_s,
                "method": total - jit.seconds, "compile": jit.seconds}
-    settings = {k: v for k, v in settings_dict(s).items() if k not in ("reference", "weights")}
+    settings = settings_record(s, leave_out=("reference", "weights"))
     settings["reference"] = "input" if s.reference is None else "given"
-    report = Report(summary(NAME, result.curve, keytime_phases(result.curve, request.keytimes), timings,
-                            output_frames=result.curve.n_frames(motion.fps), objective=float(result.objective),
-                            exact=bool(result.exact), settings=settings))
+    report = Report(summary(NAME, result.curve, motion.fps, keytime_phases(result.curve, request.keytimes), timings,
+                            objective=float(result.objective), exact=bool(result.exact), settings=settings))
     info = {"objective": float(result.objective), "exact": bool(result.exact), "n": result.n, "m": result.m,
             "r": result.r, "s": result.s, "k": result.k}
     return Result(result.curve, report, info=info, detail=result)

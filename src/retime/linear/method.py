@@ -5,7 +5,7 @@ import time
 from dataclasses import dataclass
 
 from ..errors import RetimeError
-from ..method import Report, Request, Result, settings_dict, summary
+from ..method import Report, Request, Result, settings_record, summary
 from ..phases import keytime_phases
 from ..warp import keytime_warp, scale_warp
 
@@ -27,6 +27,6 @@ def solve(motion, request: Request) -> Result:
     else:
         curve = keytime_warp(motion.duration, request.keytimes, request.output_duration(motion), smooth=settings.smooth)
     seconds = time.perf_counter() - t0
-    report = Report(summary(NAME, curve, keytime_phases(curve, request.keytimes), {"method": seconds},
-                            output_frames=curve.n_frames(motion.fps), settings=settings_dict(settings)))
+    report = Report(summary(NAME, curve, motion.fps, keytime_phases(curve, request.keytimes), {"method": seconds},
+                            settings=settings_record(settings)))
     return Result(curve, report, info={"keytimes": len(request.keytimes)})

@@ -2,13 +2,14 @@
 
 retime's environment does not hold Blender: the ``bpy`` wheel pins NumPy below 2, so it usually lives in
 a virtual environment of its own. retime runs :mod:`.inside_blender.bridge` there as a subprocess,
-which imports the file and writes the animated armature as a BVH plus JSON (frame rate, first frame,
-bone names); writing imports the source file again, puts the retimed poses on its armature as a new
+which imports the file and writes the animated armature as a BVH plus JSON (frame rate, metres per
+unit); writing imports the source file again, puts the retimed poses on its armature as a new
 action and exports, so the file's meshes, skins and materials stay. The Python that has ``bpy`` is,
 in this order (:func:`bpy_command`):
 
 1. ``RETIME_BPY_PYTHON``, a Python executable with ``bpy`` installed;
-2. ``.venv-bpy`` in the current folder or beside retime's source tree (a development checkout);
+2. ``.venv-bpy`` in the current folder or beside retime's source tree (a development checkout), when
+   its Python can import ``bpy``;
 3. the Python running retime, when it can import ``bpy`` (``pip install 'retime[blender]'``);
 4. ``blender`` on PATH, run as ``blender --background --python bridge.py``.
 """
@@ -41,6 +42,14 @@ def _venv_python(venv: Path) -> Path:
     return venv / ("Scripts/python.exe" if os.name == "nt" else "bin/python")
 
 
+def _imports_bpy(python: Path) -> bool:
+    """Whether ``python`` runs and can import ``bpy``."""
+    try:
+        return subprocess.run([str(python), "-c", "import bpy"], capture_output=True, check=False).returncode == 0
+    except OSError:
+        return False
+
+
 def _venv_places():
     return [Path.cwd() / ".venv-bpy", Path(__file__).resolve().parents[3] / ".venv-bpy"]
 
@@ -55,7 +64,7 @@ def bpy_command() -> tuple[str, ...] | None:
             raise RetimeError(f"RETIME_BPY_PYTHON={given}: no such file; point it at a Python with bpy installed")
         return (given, str(BRIDGE))
     for venv in _venv_places():
-        if _venv_python(venv).is_file():
+        if _venv_python(venv).is_file() and _imports_bpy(_venv_python(venv)):
             return (str(_venv_python(venv)), str(BRIDGE))
     if importlib.util.find_spec("bpy") is not None:
         return (sys.executable, str(BRIDGE))

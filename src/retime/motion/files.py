@@ -24,10 +24,8 @@ def load_motion(path, fps=None, asf=None, up=None, units=None, angles=None) -> M
     'in', ... or metres per unit) override the detection, ``angles`` ('deg' or 'rad') a BVH's
     rotation unit (default: detected)."""
     path = Path(path)
-    if fps is not None and not (fps > 0):
-        raise FormatError(path, f"frame rate must be positive, got {fps}")
     if fps is not None:
-        _check_rate(path, fps)
+        _check_rate(path, fps, "the given frame rate")
     with contextlib.suppress(OSError):  # the readers hold about 14 times the file in memory at their peak
         check_memory(14 * path.stat().st_size, f"reading {path}")
     suffix = path.suffix.lower()
@@ -45,11 +43,12 @@ def load_motion(path, fps=None, asf=None, up=None, units=None, angles=None) -> M
     raise FormatError(path, f"unknown motion format {suffix or '(no extension)'!r}; retime reads .bvh, .amc, .fbx, .glb and .gltf")
 
 
-def _check_rate(path, fps):
+def _check_rate(path, fps, what="the file's frame rate"):
     try:
-        check_fps(float(fps))
+        check_fps(float(fps), what)
     except RetimeError as e:
-        raise FormatError(path, f"{e}; check Frame Time, or give --fps") from None
+        hint = "give another" if what == "the given frame rate" else "check Frame Time, or give --fps"
+        raise FormatError(path, f"{e}; {hint}") from None
 
 
 def with_detected_frame(path, motion, up=None, units=None, declared=None):

@@ -115,10 +115,11 @@ MAX_PROP_JOINTS = 3
 
 def descendants(parents, j) -> list[int]:
     """``j`` and every joint below it (parents come before their children)."""
-    out = [j]
+    out, inside = [j], {j}
     for k in range(j + 1, len(parents)):
-        if parents[k] in out:
+        if parents[k] in inside:
             out.append(k)
+            inside.add(k)
     return out
 
 
@@ -126,7 +127,7 @@ def props_below(skeleton, j) -> list[int] | None:
     """When joint ``j`` carries the body through one child and holds only props or helpers beside
     it (IK targets, a reference marker: subtrees of at most 3 joints, no limb among them and no
     mirrored pair), the joints of those props; [] when it has a single child; None otherwise."""
-    kids = [int(k) for k in np.flatnonzero(skeleton.parents == j)]
+    kids = skeleton.children(j)
     if len(kids) <= 1:
         return [] if kids else None
     trees = {k: descendants(skeleton.parents, k) for k in kids}
@@ -158,7 +159,7 @@ def base_and_props(skeleton) -> tuple[int, list[int]]:
         here = props_below(skeleton, j)
         if here is None or any(e == j for e, _ in skeleton.end_sites):
             break
-        kids = [int(k) for k in np.flatnonzero(skeleton.parents == j) if int(k) not in here]
+        kids = [k for k in skeleton.children(j) if k not in here]
         if len(kids) != 1 or len(descendants(skeleton.parents, kids[0])) < 3:
             break
         props += here

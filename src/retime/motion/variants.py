@@ -86,8 +86,8 @@ _CONVENTIONS["secondlife"] = dict(_CONVENTIONS["kinect"], fmt="m{part}{side}", o
 
 
 def rename(motion: Motion, convention: str = "mixamo") -> Motion:
-    """Joint names in another rig's convention: limbs by their role (the limbs found when the
-    motion was loaded), other joints prefixed as that convention prefixes them."""
+    """Joint names in another rig's convention: limbs by their role (found afresh on this motion),
+    other joints prefixed as that convention prefixes them."""
     from .frame import detect_frame
 
     conv = _CONVENTIONS[convention]

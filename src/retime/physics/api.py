@@ -51,7 +51,7 @@ import numpy as np
 from ..errors import RetimeError
 from ..motion.frame import up_vector
 from ..warp import TimingCurve, snap_duration
-from .constants import DEFAULT_SMOOTHING, STANDARD_GRAVITY, G
+from .constants import DEFAULT_SMOOTHING, MAX_GRAVITY, STANDARD_GRAVITY, G
 from .fastest import fastest_timing
 from .globalstart import global_start, soften
 from .objective import BakedObjective, bake, target_torques
@@ -91,6 +91,27 @@ def prepare(motion, gravity=STANDARD_GRAVITY, mass_factors=None, objective="matc
             w_min=0.02, w_max=12.0, penalty="l1", smoothing=DEFAULT_SMOOTHING, delta=1e-3, cancel=None):
     """Dynamics, regions and the baked objective: everything but the spline. ``cancel``: asked
     between frames of the regions; True stops with :class:`.regions.Cancelled`."""
+    timings = {} if timings is None else timings
+    terms, pd0, pd, regions = prepare_regions(motion, gravity, mass_factors, body, contacts, friction, torque_scale,
+                                              region_options, terms, progress, timings, smoothing, cancel)
+    opts = regions.options
+    t0 = time.perf_counter()
+    tau0 = np.asarray(pd0.b) + np.asarray(pd0.c) - np.einsum("nvk,nk->nv", np.asarray(pd0.N), regions.lam0)
+    target = tau0 if objective == "match" else target_torques(objective, pd0, regions)
+    act = ~((np.asarray(pd.tau_lo) == 0) & (np.asarray(pd.tau_hi) == 0))
+    tau_scale = float(np.sqrt(np.mean(np.sum(tau0[:, act] ** 2, axis=1)))) or 1.0
+    obj = bake(pd, regions, target, alpha=alpha, beta=beta, tau_scale=tau_scale,
+               samples_per_frame=samples_per_frame, metric=metric, excess=excess, gamma=gamma,
+               v_range=(w_min ** 2, min(opts.v_max, w_max ** 2)), penalty=penalty, delta=delta)
+    timings["bake"] = time.perf_counter() - t0
+    return terms, pd, regions, obj
+
+
+def prepare_regions(motion, gravity=STANDARD_GRAVITY, mass_factors=None, body=None, contacts=None, friction=None,
+                    torque_scale=1.0, region_options=None, terms=None, progress=False, timings=None,
+                    smoothing=DEFAULT_SMOOTHING, cancel=None):
+    """Dynamics under the original and the asked physics (pd0, pd) and the feasible regions:
+    (terms, pd0, pd, regions). What ``retime check`` needs; :func:`prepare` adds the objective."""
     from .dynamics import dynamics_terms
 
     timings = {} if timings is None else timings
@@ -110,20 +131,7 @@ def prepare(motion, gravity=STANDARD_GRAVITY, mass_factors=None, objective="matc
     t0 = time.perf_counter()
     regions = compute_regions(pd, opts, reference=pd0 if changed else None, progress=progress, cancel=cancel)
     timings["regions"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    if objective == "match":
-        lam0 = regions.lam0
-        target = np.asarray(pd0.b) + np.asarray(pd0.c) - np.einsum("nvk,nk->nv", np.asarray(pd0.N), lam0)
-    else:
-        target = target_torques(objective, pd0, regions)
-    tau0 = np.asarray(pd0.b) + np.asarray(pd0.c) - np.einsum("nvk,nk->nv", np.asarray(pd0.N), regions.lam0)
-    act = ~((np.asarray(pd.tau_lo) == 0) & (np.asarray(pd.tau_hi) == 0))
-    tau_scale = float(np.sqrt(np.mean(np.sum(tau0[:, act] ** 2, axis=1)))) or 1.0
-    obj = bake(pd, regions, target, alpha=alpha, beta=beta, tau_scale=tau_scale,
-               samples_per_frame=samples_per_frame, metric=metric, excess=excess, gamma=gamma,
-               v_range=(w_min ** 2, min(opts.v_max, w_max ** 2)), penalty=penalty, delta=delta)
-    timings["bake"] = time.perf_counter() - t0
-    return terms, pd, regions, obj
+    return terms, pd0, pd, regions
 
 
 def make_problem(obj, source_duration, duration=None, keytimes=(), knot_spacing=0.05, w_min=0.02, w_max=12.0,
@@ -175,14 +183,14 @@ def make_problem(obj, source_duration, duration=None, keytimes=(), knot_spacing=
 def conformed_gravity(motion, gravity=None) -> np.ndarray:
     """Gravity (m/s^2) given in the file's own axes (None: 9.81 down the detected up axis, see
     :mod:`retime.motion.frame`), in the y-up world physics works in."""
-    from ..motion.conform import up_rotation
+    from ..motion.frame import up_rotation
 
     R = up_rotation(motion.skeleton.up)
     if gravity is None:
         return np.asarray(STANDARD_GRAVITY, dtype=float)
     g = np.asarray(gravity, dtype=float)
-    if g.shape != (3,) or not np.all(np.isfinite(g)) or np.linalg.norm(g) > 1000.0:
-        raise RetimeError(f"gravity must be three finite numbers, at most 1000 m/s^2 long, got {gravity!r}")
+    if g.shape != (3,) or not np.all(np.isfinite(g)) or np.linalg.norm(g) > MAX_GRAVITY:
+        raise RetimeError(f"gravity must be three finite numbers, at most {MAX_GRAVITY:g} m/s^2 long, got {gravity!r}")
     return R @ g
 
 
@@ -210,51 +218,42 @@ def physics_warp(motion, duration=None, scale=None, gravity=None, mass_factors=N
         if not duration > 0:
             raise RetimeError(f"duration must be positive, got {duration}")
         duration = snap_duration(duration, fps)
+    check_keytimes(keytimes, S, duration)  # before the dynamics: fail fast
     from ..jit import compile_watch, stderr_if
 
     with compile_watch(stderr_if(progress)) as jit:
-        result = _physics_warp(motion, duration, gravity, mass_factors, objective, keytimes, body, contacts, friction,
-                               torque_scale, alpha, beta, method, knot_spacing, samples_per_frame, region_options,
-                               terms, max_iter, progress, gamma, metric, excess, penalty, smoothing, delta, start)
+        timings = {}
+        file_gravity = -G * up_vector(motion.skeleton.up) if gravity is None else np.asarray(gravity, dtype=float)
+        gravity = conformed_gravity(motion, gravity)
+        terms, pd, regions, obj = prepare(motion, gravity, mass_factors, objective, body, contacts, friction,
+                                          torque_scale, alpha, beta, samples_per_frame, region_options, terms,
+                                          progress, timings, gamma=gamma, metric=metric, excess=excess,
+                                          penalty=penalty, smoothing=smoothing, delta=delta)
+        source = check_source(motion, terms, regions)  # said before the retiming, by the caller
+        problem = make_problem(obj, S, duration, keytimes, knot_spacing, start=start, timings=timings)
+        session = RetimingSession(problem, method=method, fps=fps)
+        t0 = time.perf_counter()
+        info = session.reconverge(max_iter=max_iter, tol=1e-9)
+        timings["optimize"] = time.perf_counter() - t0
+        spline = session.spline
+        if spline.free and not problem.keytimes:
+            # put the free duration on the output frame grid (a uniform stretch of < half a frame)
+            T = spline.duration
+            Ts = snap_duration(T, fps)
+            spline.w = spline.w * (T / Ts)
+        curve = spline.timing_curve(fps)
+        fastest = fastest_timing(regions)  # the least physical duration, for the report
+        report = build_report(spline, pd, regions, fps, info=info,
+                              extra={"objective_kind": objective, "gravity": [float(x) for x in file_gravity],
+                                     "up": motion.skeleton.up, "meters_per_unit": float(motion.skeleton.meters_per_unit),
+                                     "conform_notes": list(getattr(terms, "conform_notes", [])),
+                                     "source_check": source.as_dict(),
+                                     "warnings": [w for w in [source.message()] if w],
+                                     "mass_factors": dict(mass_factors or {}), "timings": {k: round(v, 4) for k, v in timings.items()},
+                                     "bind_pose_frames": int(getattr(terms, "bind_pose_frames", 0)),
+                                     "least_duration": None if not np.isfinite(fastest.duration) else round(fastest.duration, 4)})
+        result = PhysicsResult(curve, report, spline, session, pd, regions, obj, info, timings, terms)
     # the compiler's time is not the method's: reported apart (phases include it on a first run)
     result.timings["compile"] = round(jit.seconds, 4)
     result.report["summary"]["timings"]["compile"] = round(jit.seconds, 4)
     return result
-
-
-def _physics_warp(motion, duration, gravity, mass_factors, objective, keytimes, body, contacts, friction, torque_scale,
-                  alpha, beta, method, knot_spacing, samples_per_frame, region_options, terms, max_iter, progress,
-                  gamma, metric, excess, penalty, smoothing, delta, start):
-    fps = float(motion.fps)
-    S = motion.duration
-    timings = {}
-    file_gravity = -G * up_vector(motion.skeleton.up) if gravity is None else np.asarray(gravity, dtype=float)
-    gravity = conformed_gravity(motion, gravity)
-    terms, pd, regions, obj = prepare(motion, gravity, mass_factors, objective, body, contacts, friction, torque_scale,
-                                      alpha, beta, samples_per_frame, region_options, terms, progress, timings,
-                                      gamma=gamma, metric=metric, excess=excess, penalty=penalty,
-                                      smoothing=smoothing, delta=delta)
-    source = check_source(motion, terms, regions)  # said before the retiming, by the caller
-    problem = make_problem(obj, S, duration, keytimes, knot_spacing, start=start, timings=timings)
-    session = RetimingSession(problem, method=method, fps=fps)
-    t0 = time.perf_counter()
-    info = session.reconverge(max_iter=max_iter, tol=1e-9)
-    timings["optimize"] = time.perf_counter() - t0
-    spline = session.spline
-    if spline.free and not problem.keytimes:
-        # put the free duration on the output frame grid (a uniform stretch of < half a frame)
-        T = spline.duration
-        Ts = snap_duration(T, fps)
-        spline.w = spline.w * (T / Ts)
-    curve = spline.timing_curve(fps)
-    fastest = fastest_timing(regions)  # the least physical duration, for the report
-    report = build_report(spline, pd, regions, fps, info=info,
-                          extra={"objective_kind": objective, "gravity": [float(x) for x in file_gravity],
-                                 "up": motion.skeleton.up, "meters_per_unit": float(motion.skeleton.meters_per_unit),
-                                 "conform_notes": list(getattr(terms, "conform_notes", [])),
-                                 "source_check": source.as_dict(),
-                                 "warnings": [w for w in [source.message()] if w],
-                                 "mass_factors": dict(mass_factors or {}), "timings": {k: round(v, 4) for k, v in timings.items()},
-                                 "bind_pose_frames": int(getattr(terms, "bind_pose_frames", 0)),
-                                 "least_duration": None if not np.isfinite(fastest.duration) else round(fastest.duration, 4)})
-    return PhysicsResult(curve, report, spline, session, pd, regions, obj, info, timings, terms)

@@ -129,9 +129,9 @@ def _torque_excess(terms) -> np.ndarray:
 def check_clip(motion, body=None, contacts=None) -> ClipCheck:
     """Check ``motion``'s own timing (see the module docstring); ``body`` and ``contacts`` as for
     :func:`retime.physics.api.physics_warp`."""
-    from .api import prepare
+    from .api import prepare_regions
 
-    terms, pd, regions, _ = prepare(motion, body=body, contacts=contacts)
+    terms, _, _, regions = prepare_regions(motion, body=body, contacts=contacts)  # no objective: no retiming
     spf = int(terms.samples_per_frame)
     residual = np.asarray(regions.source_residual, dtype=float)[::spf]
     contact = np.asarray(terms.contact, dtype=bool)[::spf]

@@ -2,5 +2,6 @@
 
 G = 9.81  # standard gravity, m/s^2
 STANDARD_GRAVITY = (0.0, -G, 0.0)  # in the y-up world physics works in
+MAX_GRAVITY = 1000.0  # m/s^2: a hundred g, the most any gravity may be
 # seconds: the Gaussian low-pass of the path before it is differentiated (physics.api says why)
 DEFAULT_SMOOTHING = 0.05

@@ -324,7 +324,7 @@ def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_
 
     ``budget`` (nv,): row residuals the captured motion needs at this frame under the original
     physics (:func:`source_fit`); ``None`` means these coefficients *are* the original physics and the
-    budget is fitted here. Row r is then bounded by ``lo - (pad + budget) p'^2 ... hi + ...``
+    budget is fitted here. Row r is then bounded by ``lo - pad - budget p'^2 ... hi + pad + budget p'^2``
     (``pad`` only on rows with a budget): the captured motion's inconsistency is taken to come from
     its accelerations, so it grows with p'^2. ``pool``: the HiGHS objects to use (warm starts from
     the frames solved with it before); default: new ones."""
@@ -390,12 +390,13 @@ def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_
         lam_c = solve_center(lp, center[0], center[1], force_weights(N[:3][:, act] if n_root >= 3 else N[:, act], n_root))
         n_lp += 1
         if lam_c is None:  # the centre sits on a clipped edge within round-off: nearest vertex
-            lam_c = _interp_on_polygon(P, L, center)[act]
+            lam_c = _nearest_vertex_lam(P, L, center)[act]
         clam[act] = np.maximum(lam_c, 0.0)
     return FrameRegion(P, L, center, clam, lo1, hi1, budget, src_res, lam0, level, relaxed, dist, n_lp, piv)
 
 
-def _interp_on_polygon(P, L, point):
+def _nearest_vertex_lam(P, L, point):
+    """The contact coefficients of the polygon vertex nearest to ``point``."""
     d = np.hypot(P[:, 0] - point[0], P[:, 1] - point[1])
     return L[int(np.argmin(d))]
 

@@ -49,6 +49,14 @@ def new_highs():
     return h
 
 
+def _colwise(A):
+    """A (m, n) dense matrix in HiGHS's column-wise form: (start, index, value)."""
+    At = np.asarray(A, dtype=float).T
+    nz = At != 0.0
+    start = np.concatenate(([0], np.cumsum(nz.sum(axis=1)))).astype(np.int32)
+    return start, np.nonzero(nz)[1].astype(np.int32), np.ascontiguousarray(At[nz])
+
+
 def _highs_lp(A, col_lo, col_hi, row_lo, row_hi, cost=None):
     import highspy
 
@@ -61,12 +69,8 @@ def _highs_lp(A, col_lo, col_hi, row_lo, row_hi, cost=None):
     lp.col_upper_ = np.where(col_hi >= INF * 0.5, highspy.kHighsInf, col_hi)
     lp.row_lower_ = np.where(row_lo <= -INF * 0.5, -highspy.kHighsInf, row_lo)
     lp.row_upper_ = np.where(row_hi >= INF * 0.5, highspy.kHighsInf, row_hi)
-    At = np.asarray(A, dtype=float).T
-    nz = At != 0.0
     lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-    lp.a_matrix_.start_ = np.concatenate(([0], np.cumsum(nz.sum(axis=1)))).astype(np.int32)
-    lp.a_matrix_.index_ = np.nonzero(nz)[1].astype(np.int32)
-    lp.a_matrix_.value_ = At[nz]
+    lp.a_matrix_.start_, lp.a_matrix_.index_, lp.a_matrix_.value_ = _colwise(A)
     lp.a_matrix_.num_col_ = n
     lp.a_matrix_.num_row_ = m
     return lp
@@ -77,11 +81,7 @@ def pass_lp(h, A, col_lo, col_hi, row_lo, row_hi, cost=None):
     import highspy
 
     m, n = A.shape
-    At = np.asarray(A, dtype=float).T
-    nz = At != 0.0
-    start = np.concatenate(([0], np.cumsum(nz.sum(axis=1)))).astype(np.int32)
-    index = np.nonzero(nz)[1].astype(np.int32)
-    value = np.ascontiguousarray(At[nz])
+    start, index, value = _colwise(A)
     # HiGHS reads any bound beyond 1e20 as infinite, so the 1e30 used here passes as it is
     st = h.passModel(n, m, len(value), 1, 1, 0.0, np.zeros(n) if cost is None else np.asarray(cost, dtype=float),
                      col_lo, col_hi, row_lo, row_hi, start, index, value, np.zeros(n, dtype=np.int32))

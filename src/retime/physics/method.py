@@ -3,14 +3,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-
 from ..errors import RetimeError
-from ..method import Report, Request, Result, settings_dict
-from ..warp import check_keytimes
-from .constants import G
+from ..method import Report, Request, Result, settings_record
+from .constants import MAX_GRAVITY, G
 
 NAME = "physics"
-MAX_GRAVITY = 1000.0  # m/s^2: a hundred g
 MASS_FACTORS = (1e-3, 1e3)
 
 
@@ -68,9 +65,7 @@ def solve(motion, request: Request) -> Result:
     s = request.settings_or(Settings)
     if motion.n_frames < 4:
         raise RetimeError(f"physics needs at least 4 frames, the motion has {motion.n_frames}")
-    duration = request.output_duration(motion)
-    check_keytimes(request.keytimes, motion.duration, duration)  # before the dynamics: fail fast
-    result = physics_warp(motion, duration=duration, gravity=file_gravity(motion, s),
+    result = physics_warp(motion, duration=request.output_duration(motion), gravity=file_gravity(motion, s),
                           mass_factors=check_masses(motion, s.mass_factors), objective=s.objective,
                           keytimes=request.keytimes, body=s.body, contacts=s.contacts, friction=s.friction,
                           torque_scale=s.torque_scale, alpha=s.alpha, beta=s.beta, method=s.optimizer,
@@ -79,7 +74,7 @@ def solve(motion, request: Request) -> Result:
     summary = result.report["summary"]
     summary["method"] = NAME
     summary["notes"] = list(summary.get("conform_notes", []))
-    summary["settings"] = {k: v for k, v in settings_dict(s).items() if k not in ("body", "contacts")}
+    summary["settings"] = settings_record(s, leave_out=("body", "contacts"))
     t = summary["timings"]
     t["method"] = round(float(sum(v for k, v in t.items() if k != "compile")) - t.get("compile", 0.0), 4)
     info = result.info

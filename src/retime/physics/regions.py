@@ -259,6 +259,10 @@ class Cancelled(RetimeError):
     """The caller asked a long computation to stop (the editor's tab closed, Ctrl-C)."""
 
 
+CHUNKS = 8  # chunks of frames with their own warm starts (a pool shares them out)
+CHUNKED_FRAMES = 120  # fewer frames: one chunk, solved here
+
+
 def _may_fork() -> bool:
     """A process pool by fork only from the main thread of a process with no other thread: a
     fork from a thread (the editor's solver threads, Dask workers) copies locks held elsewhere and
@@ -320,11 +324,13 @@ def compute_regions(pd, options: RegionOptions | None = None, reference=None, fr
     job = RegionJob.build(pd, reference, opts, bw, n_root)
     workers = opts.workers
     if workers is None:
-        workers = min(2, os.cpu_count() or 1) if n >= 120 else 1
-    # warm starts only within a chunk of frames, and the same chunks whether a pool runs them or
-    # this thread does: the answer must not depend on the scheduling, nor on what ran before
-    pooled = workers > 1 and n >= 2 * workers
-    chunks = [list(ch) for ch in np.array_split(idx, 4 * workers) if len(ch)] if pooled else [list(idx)]
+        workers = min(2, os.cpu_count() or 1) if n >= CHUNKED_FRAMES else 1
+    # warm starts only within a chunk of frames, and the same chunks whatever runs them (a pool of
+    # any size or this thread): the answer must not depend on the machine, the scheduling, nor on
+    # what ran before
+    n_chunks = CHUNKS if n >= CHUNKED_FRAMES else 1
+    chunks = [list(ch) for ch in np.array_split(idx, n_chunks) if len(ch)]
+    pooled = workers > 1 and len(chunks) >= workers
     results = None
     if pooled and cancel is None and _may_fork():
         results = _solve_forked(job, chunks, workers)

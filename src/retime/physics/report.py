@@ -18,19 +18,19 @@ import numpy as np
 
 from ..io_util import atomic_write
 from ..phases import contact_phases
-from .feasibility import IN_REGION_TOL, spline_feasibility
+from .feasibility import IN_REGION_TOL, feasibility, output_times
 from .forces import FanModel
 from .objective import actuated_mask
 
 
 def build_report(spline, pd, regions, fps, tol=IN_REGION_TOL, info=None, extra=None) -> dict:
     T = spline.duration
-    feas = spline_feasibility(spline, pd, regions, fps, tol)
-    n_out = len(feas.frames)
-    t = np.minimum(np.arange(n_out) / fps, T)
+    t = output_times(T, fps)
+    n_out = len(t)
     s = spline(t)
     pdot = spline.speed(t)
     pddot = spline.accel(t)
+    feas = feasibility(pd, regions, s, pdot, pddot, tol)
     times = np.asarray(pd.times, dtype=float)
     act = actuated_mask(pd)
     contact = np.asarray(pd.contact, dtype=bool)

@@ -261,32 +261,58 @@ def write_curve(fcurves, data_path, index, group, frames, values):
     return fc
 
 
-def key_bone(fcurves, pose_bone, frames, locations, quaternions, scales=None):
-    """Key a bone at ``frames``: locations (F, 3), rotations as quaternions (F, 4; w x y z) written in the
-    bone's own rotation mode (quaternions kept on one hemisphere, Euler angles continuous), scales (F, 3)."""
+def frame_range(action):
+    """An action's first and last frames, rounded to whole frames."""
+    start, end = action.frame_range
+    return int(round(start)), int(round(end))
+
+
+def scene_fps(scene):
+    """A scene's frame rate in frames per second."""
+    return scene.render.fps / scene.render.fps_base
+
+
+def rotation_path(mode):
+    """The pose bone (or object) property a rotation mode plays."""
+    return {"QUATERNION": "rotation_quaternion", "AXIS_ANGLE": "rotation_axis_angle"}.get(mode, "rotation_euler")
+
+
+def quaternions_to_mode(quats, mode, previous=None):
+    """Rotations given as quaternions (F, 4; w x y z) as the values of the property rotation mode ``mode``
+    plays (see :func:`rotation_path`): quaternions (F, 4) kept on the hemisphere of the previous frame's,
+    for Blender interpolates the components; axis-angle (F, 4; angle, axis) of those; Euler angles (F, 3)
+    in the order ``mode``, each frame's the nearest to the previous frame's, the first frame's the nearest
+    to ``previous`` (Euler angles) when given."""
     from mathutils import Euler, Quaternion
 
-    name = pose_bone.name.replace("\\", "\\\\").replace('"', '\\"')
-    path = f'pose.bones["{name}"].'
-    q = np.array(quaternions, dtype=float)
-    for k in range(1, len(q)):  # the sign nearer the previous frame's: Blender interpolates the components
+    q = np.array([tuple(r) for r in quats], dtype=float).reshape(-1, 4)
+    for k in range(1, len(q)):  # the sign nearer the previous frame's
         if np.dot(q[k], q[k - 1]) < 0:
             q[k] = -q[k]
-    mode = pose_bone.rotation_mode
     if mode == "QUATERNION":
-        rot_path, rot = "rotation_quaternion", q
-    elif mode == "AXIS_ANGLE":
-        rot = []
-        for w, x, y, z in q:
-            axis, angle = Quaternion((w, x, y, z)).to_axis_angle()
-            rot.append((angle, *axis))
-        rot_path, rot = "rotation_axis_angle", np.array(rot)
-    else:
-        rot, prev = [], Euler((0.0, 0.0, 0.0), mode)
-        for w, x, y, z in q:
-            prev = Quaternion((w, x, y, z)).to_euler(mode, prev)
-            rot.append(tuple(prev))
-        rot_path, rot = "rotation_euler", np.array(rot)
+        return q
+    if mode == "AXIS_ANGLE":
+        out = []
+        for r in q:
+            axis, angle = Quaternion(r).to_axis_angle()
+            out.append((angle, *axis))
+        return np.array(out).reshape(-1, 4)
+    out, prev = [], None if previous is None else Euler(previous, mode)
+    for r in q:
+        prev = Quaternion(r).to_euler(mode, prev) if prev is not None else Quaternion(r).to_euler(mode)
+        out.append(tuple(prev))
+    return np.array(out).reshape(-1, 3)
+
+
+def key_bone(fcurves, pose_bone, frames, locations, quaternions, scales=None):
+    """Key a bone at ``frames``: locations (F, 3), rotations as quaternions (F, 4; w x y z) written in the
+    bone's own rotation mode (see :func:`quaternions_to_mode`; Euler angles from the nearest to zero),
+    scales (F, 3)."""
+    name = pose_bone.name.replace("\\", "\\\\").replace('"', '\\"')
+    path = f'pose.bones["{name}"].'
+    mode = pose_bone.rotation_mode
+    rot_path = rotation_path(mode)
+    rot = quaternions_to_mode(quaternions, mode, previous=(0.0, 0.0, 0.0))
     for i in range(3):
         write_curve(fcurves, path + "location", i, pose_bone.name, frames, locations[:, i])
     for i in range(rot.shape[1]):

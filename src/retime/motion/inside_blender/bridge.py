@@ -2,7 +2,7 @@
 (``python bridge.py ARGS``) or in Blender (``blender --background --python bridge.py -- ARGS``):
 
     read SOURCE OUT.bvh OUT.json        the animated armature of SOURCE as a BVH, and what retime needs
-                                        to know about it (frame rate, first frame, names) as JSON
+                                        to know about it (frame rate, metres per unit) as JSON
     write SOURCE POSES.npz OUT          SOURCE imported, its armature playing the poses in POSES.npz
                                         (written by retime.motion.blender_io), exported to OUT (.fbx,
                                         .glb or .gltf, by suffix). A .bvh or .amc SOURCE has no scene:
@@ -49,25 +49,26 @@ def import_scene(path):
     scene = empty_scene()
     suffix = os.path.splitext(path)[1].lower()
     if suffix == ".fbx":
-        _run_importer(bpy.ops.import_scene.fbx, filepath=path)  # sets the scene's rate from the file's time mode
+        _run_operator("importer", bpy.ops.import_scene.fbx, filepath=path)  # sets the scene's rate from the file's time mode
     else:
         # glTF keeps times in seconds and the importer turns them into frames at the scene's rate (a glTF
         # sampled at 30 Hz imported at Blender's default 24 fps lands between frames): use the file's rate
         rate = gltf_rate(path)
         if rate is not None:
             scene.render.fps, scene.render.fps_base = max(1, round(rate)), 1.0  # the importer ignores fps_base
-        _run_importer(bpy.ops.import_scene.gltf, filepath=path)
+        _run_operator("importer", bpy.ops.import_scene.gltf, filepath=path)
     return scene
 
 
-def _run_importer(op, **kwargs):
-    """Run an importer; its failure becomes a BridgeError."""
+def _run_operator(kind, op, failed="", **kwargs):
+    """Run Blender's ``kind`` ("importer", "exporter") operator; its failure becomes a BridgeError: the last
+    line of its report after ``failed``, or that it gave up."""
     try:
         result = op(**kwargs)
     except RuntimeError as e:  # the operator's report, e.g. an unsupported FBX version
-        raise BridgeError(str(e).strip().splitlines()[-1]) from None
+        raise BridgeError(failed + str(e).strip().splitlines()[-1]) from None
     if "FINISHED" not in result:
-        raise BridgeError(f"Blender's importer gave up ({', '.join(result)})")
+        raise BridgeError(f"Blender's {kind} gave up ({', '.join(result)})")
 
 
 def gltf_json(path):
@@ -98,7 +99,7 @@ def gltf_rate(path):
     return None
 
 
-def animated_armature(scene, path):
+def animated_armature(scene):
     """The one armature with an action in the scene."""
     armatures = [o for o in scene.objects if o.type == "ARMATURE"]
     animated = [o for o in armatures if o.animation_data and o.animation_data.action]
@@ -112,36 +113,24 @@ def animated_armature(scene, path):
     return animated[0]
 
 
-def frame_range(action):
-    start, end = action.frame_range
-    return int(round(start)), int(round(end))
-
-
-def scene_fps(scene):
-    return scene.render.fps / scene.render.fps_base
-
-
 def read(source, out_bvh, out_json):
     import bpy
 
     scene = import_scene(source)
-    obj = animated_armature(scene, source)
+    obj = animated_armature(scene)
     action = obj.animation_data.action
-    start, end = frame_range(action)
+    start, end = armature.frame_range(action)
     if end <= start:
         raise BridgeError(f"the action {action.name!r} has a single frame; there is no timing to change")
     try:
         pose = armature.BvhPose(*armature.sample_pose(bpy.context, obj, range(start, end + 1)))
     except armature.ArmatureError as e:
         raise BridgeError(str(e)) from None
-    fps = scene_fps(scene)
+    fps = armature.scene_fps(scene)
     with open(out_bvh, "w", newline="\n") as f:
         f.write(pose.text(fps))
-    meta = {"fps": fps, "frame_start": start, "frames": end - start + 1, "armature": obj.name, "action": action.name,
-            "meters_per_unit": scene.unit_settings.scale_length, "blender": bpy.app.version_string,
-            "bones": dict(zip(pose.hierarchy.bvh_names, pose.hierarchy.names))}
     with open(out_json, "w") as f:
-        json.dump(meta, f)
+        json.dump({"fps": fps, "meters_per_unit": scene.unit_settings.scale_length}, f)
     return 0
 
 
@@ -152,8 +141,8 @@ def write(source, poses_npz, out):
     fps = float(poses["fps"])
     if os.path.splitext(source)[1].lower() in SCENE_SUFFIXES:
         scene = import_scene(source)
-        obj = animated_armature(scene, source)
-        start = frame_range(obj.animation_data.action)[0]
+        obj = animated_armature(scene)
+        start = armature.frame_range(obj.animation_data.action)[0]
         n_frames = put_poses(bpy.context, obj, poses, start)
     else:
         scene = empty_scene()
@@ -161,7 +150,7 @@ def write(source, poses_npz, out):
         with open(bvh, "w") as f:
             f.write(str(poses["bvh_text"]))
         try:
-            _run_importer(bpy.ops.import_anim.bvh, filepath=bvh, update_scene_fps=True, frame_start=1)
+            _run_operator("importer", bpy.ops.import_anim.bvh, filepath=bvh, update_scene_fps=True, frame_start=1)
         finally:
             os.unlink(bvh)
         start, n_frames = 1, int(poses["frames"])
@@ -172,9 +161,9 @@ def write(source, poses_npz, out):
 
 
 def put_poses(context, obj, poses, start):
+    """Replace the armature's action by a new one playing ``poses`` from frame ``start``; return the frame count."""
     import bpy
 
-    """Replace the armature's action by a new one playing ``poses`` from frame ``start``; return the frame count."""
     h = armature.Hierarchy(obj)
     names = [str(n) for n in poses["names"]]
     if names != h.bvh_names:
@@ -202,20 +191,17 @@ def export(out):
     import bpy
 
     suffix = os.path.splitext(out)[1].lower()
-    try:
-        if suffix == ".fbx":
-            # every frame kept (no curve simplification), no leaf bones added, the one action alone
-            result = bpy.ops.export_scene.fbx(filepath=out, bake_anim=True, bake_anim_simplify_factor=0.0,
-                                              bake_anim_use_all_actions=False, bake_anim_use_nla_strips=False,
-                                              bake_anim_force_startend_keying=True, add_leaf_bones=False)
-        else:
-            result = bpy.ops.export_scene.gltf(filepath=out, export_format="GLB" if suffix == ".glb" else "GLTF_SEPARATE",
-                                               export_animation_mode="ACTIVE_ACTIONS", export_force_sampling=True,
-                                               export_frame_range=True, export_optimize_animation_size=False)
-    except RuntimeError as e:
-        raise BridgeError(f"Blender's exporter failed: {str(e).strip().splitlines()[-1]}") from None
-    if "FINISHED" not in result:
-        raise BridgeError(f"Blender's exporter gave up ({', '.join(result)})")
+    failed = "Blender's exporter failed: "
+    if suffix == ".fbx":
+        # every frame kept (no curve simplification), no leaf bones added, the one action alone
+        _run_operator("exporter", bpy.ops.export_scene.fbx, failed, filepath=out, bake_anim=True,
+                      bake_anim_simplify_factor=0.0, bake_anim_use_all_actions=False, bake_anim_use_nla_strips=False,
+                      bake_anim_force_startend_keying=True, add_leaf_bones=False)
+    else:
+        _run_operator("exporter", bpy.ops.export_scene.gltf, failed, filepath=out,
+                      export_format="GLB" if suffix == ".glb" else "GLTF_SEPARATE",
+                      export_animation_mode="ACTIVE_ACTIONS", export_force_sampling=True, export_frame_range=True,
+                      export_optimize_animation_size=False)
 
 
 if __name__ == "__main__":
