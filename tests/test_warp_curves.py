@@ -9,7 +9,9 @@ from retime.warp import TimingCurve, keytime_warp, scale_warp, snap_duration, un
 
 SETTINGS = settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 steps = st.floats(min_value=0.01, max_value=3.0, allow_nan=False)
-rises = st.floats(min_value=0.0, max_value=3.0, allow_nan=False)
+# a rise is a hold (0) or at least 1e-9 s: PCHIP through a denormal rise (5e-324) does not even evaluate
+# monotonically, so "the first time a source time plays" has no meaning there
+rises = st.one_of(st.just(0.0), st.floats(min_value=1e-9, max_value=3.0, allow_nan=False))
 kinds = st.sampled_from(["linear", "pchip"])
 
 
