@@ -15,7 +15,6 @@ from retime.data import bundled_path
 from retime.io_util import all_or_none, atomic_write
 
 
-
 @pytest.fixture()
 def amc(tmp_path):
     """16_06.amc with its 16.asf beside it, found automatically."""
@@ -95,17 +94,24 @@ def test_outputs_commit_together_or_not_at_all(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt"]  # no temporary file left
 
 
-# The signal is sent from inside the solve (the regions stage), so the test does not depend on how fast the
-# machine is: a sleep-then-signal test passed here and failed on a faster CI machine, whose solve had finished.
+# The signal comes from inside the regions' solve, so the test does not depend on how fast the machine is (a
+# sleep-then-signal test failed on a faster CI machine, whose solve had already finished). It is sent once,
+# by the first chunk to start: in a forked worker (2 cores: the pool's terminate() must end it) or in the
+# command's own process (1 core).
 _SIGTERM_IN_SOLVE = """
 import os, signal, sys
-import retime.physics.api as api
+from retime.physics import regions
 from retime.cli import main
-solve_regions = api.compute_regions
-def regions_then_sigterm(*args, **kwargs):
-    os.kill(os.getpid(), signal.SIGTERM)
-    return solve_regions(*args, **kwargs)
-api.compute_regions = regions_then_sigterm
+solve_chunk = regions.RegionJob.solve
+def sigterm_once_then_solve(job, *args, **kwargs):
+    try:
+        os.close(os.open(os.environ["SIGTERM_MARKER"], os.O_CREAT | os.O_EXCL))
+    except FileExistsError:
+        pass
+    else:
+        os.kill(os.getppid() if regions._WORKER_JOB is not None else os.getpid(), signal.SIGTERM)
+    return solve_chunk(job, *args, **kwargs)
+regions.RegionJob.solve = sigterm_once_then_solve
 sys.exit(main())
 """
 
@@ -115,7 +121,9 @@ def test_sigterm_leaves_no_output_and_no_temporary_file(amc, tmp_path):
     out.mkdir()
     proc = subprocess.run([sys.executable, "-c", _SIGTERM_IN_SOLVE, "physics", str(amc), "-o", str(out / "o.bvh"),
                            "--warp", str(out / "w.csv"), "--report", str(out / "r.json")],
-                          capture_output=True, text=True, timeout=300)
+                          capture_output=True, text=True, timeout=300,
+                          env=dict(os.environ, SIGTERM_MARKER=str(tmp_path / "signalled")))
+    assert (tmp_path / "signalled").exists()  # the signal came from inside the solve
     assert proc.returncode == 143, proc.stderr
     assert "terminated" in proc.stderr and "Traceback" not in proc.stderr
     assert list(out.iterdir()) == []  # no output, no temporary file
