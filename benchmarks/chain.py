@@ -20,8 +20,8 @@ import time
 import numpy as np
 
 from retime.physics.dynamics import DynamicsTerms, torque_limits
-from retime.physics.path import path_samples, sample_times
-from retime.physics.tree import SPHERICAL, TreeModel, kinematics, wrenches
+from retime.physics.path import sample_times
+from retime.physics.tree import SPHERICAL, TreeModel
 
 CASES = {"C10": 10, "C100": 100, "C1000": 1000}
 
@@ -59,12 +59,10 @@ def chain_terms(n_links: int, n_frames=100, fps=30.0, samples_per_frame=1, smoot
     quats = chain_path(n_links, n_frames, fps, seed=seed) if quats is None else quats
     n_frames = len(quats)
     times = sample_times(n_frames, fps, samples_per_frame)
-    path = path_samples(fps, None, quats, tree.jtype, tree.vidx, tree.nv, times=times, smoothing=smoothing)
-    kin = kinematics(tree, None, path.quats, path.qd, path.qdd)
     n = len(times)
     terms = DynamicsTerms(tree=tree, body=None, times=times, fps=fps, samples_per_frame=int(samples_per_frame),
-                          R=kin.R, o=kin.o, W=wrenches(tree, kin), corner_jt=np.zeros((n, 0, 0, 3)),
-                          contact=np.zeros((n, 0), dtype=bool))
+                          rotations=np.asarray(quats, dtype=float), contact=np.zeros((n, 0), dtype=bool),
+                          smoothing=smoothing)
     if reference:
         d = terms.combine(with_reference=False)
         terms.tau_ref = d.b + d.c

@@ -104,6 +104,7 @@ def test_basis_forces_map_to_root_wrench(jump):
     terms = dynamics_terms(jump.frames(slice(0, 30)), reference=False)
     mu = 0.5
     d = terms.combine(friction=mu)
+    kin = terms.kinematics(terms.path(terms.smoothing), slice(None))  # the root's world frame
     E = friction_edges(mu)
     corner_point = np.array([0, 0, 1, 1, 2, 2, 3, 3])
     for i in (0, 15, 29):
@@ -115,8 +116,9 @@ def test_basis_forces_map_to_root_wrench(jump):
             if on[c]:
                 f = E.sum(axis=0)
                 world += f
-                moment += np.cross(d.corners[i, c] - terms.o[i, 0], f)
-        R = terms.R[i, 0]
+                moment += np.cross(d.corners[i, c] - kin.o[i, 0], f)
+        assert np.array_equal(kin.o[i, 0], terms.root_origin[i])
+        R = kin.R[i, 0]
         gen = d.N[i] @ lam
         assert np.allclose(gen[:3], R.T @ world)
         assert np.allclose(gen[3:6], R.T @ moment)

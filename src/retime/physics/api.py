@@ -96,7 +96,7 @@ def prepare(motion, gravity=STANDARD_GRAVITY, mass_factors=None, objective="matc
                                               region_options, terms, progress, timings, smoothing, cancel)
     opts = regions.options
     t0 = time.perf_counter()
-    tau0 = np.asarray(pd0.b) + np.asarray(pd0.c) - np.einsum("nvk,nk->nv", np.asarray(pd0.N), regions.lam0)
+    tau0 = np.asarray(pd0.b) + np.asarray(pd0.c) - pd0.N.forces(regions.lam0)
     target = tau0 if objective == "match" else target_torques(objective, pd0, regions)
     act = ~((np.asarray(pd.tau_lo) == 0) & (np.asarray(pd.tau_hi) == 0))
     tau_scale = float(np.sqrt(np.mean(np.sum(tau0[:, act] ** 2, axis=1)))) or 1.0

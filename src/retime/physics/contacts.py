@@ -87,39 +87,44 @@ def friction_edges(mu: float) -> np.ndarray:
     return e / np.sqrt(1.0 + mu * mu)
 
 
+def corner_rows(tree, body, skeleton) -> np.ndarray:
+    """The velocity rows (sorted) a force at a sole corner shows up on: the legs' and the root's."""
+    return support_rows(tree, [skeleton.index(n) for n in corner_bodies(body)[0]])
+
+
 def corner_jacobians(tree, body, skeleton, R, o):
     """J^T of unit world forces along x, y, z at each sole corner, on the rows that can feel them
-    (the legs' and the root's): (rows (R,), jt (n, R, 8, 3))."""
+    (:func:`corner_rows`): (rows (R,), jt (n, R, 8, 3))."""
     names, _ = corner_bodies(body)
     x = corner_positions(body, skeleton, R, o)
     bodies = [skeleton.index(n) for n in names]
-    rows = support_rows(tree, bodies)
+    rows = corner_rows(tree, body, skeleton)
     jt = points_jacobian_transpose(tree, R, o, bodies, x, np.eye(3)[None], rows=rows)
     return rows, jt.reshape(jt.shape[0], jt.shape[1], 8, 3)
 
 
-def contact_basis(corner_jt, mu, contact, rows=None, nv=None):
-    """N = J^T P (n, nv, 32) from corner Jacobians (n, R, 8, 3) on velocity rows ``rows`` (default
-    all), friction ``mu`` and contact states (n, 4); columns of points not in contact are zero."""
+def compact_contact_basis(corner_jt, edges, contact):
+    """N = J^T P on the rows of the corner Jacobians (n, R, 8, 3): (n, R, 32) for friction-pyramid
+    ``edges`` (4, 3) (:func:`friction_edges`) and contact states (n, 4); columns of points not in
+    contact are zero (see :class:`.contact_basis.ContactBasis` for the rows)."""
     n, R = corner_jt.shape[:2]
-    rows = np.arange(R) if rows is None else np.asarray(rows, dtype=np.int64)
-    N = np.zeros((n, R if nv is None else nv, 8 * EDGES_PER_CORNER))
-    _edges(np.ascontiguousarray(corner_jt), friction_edges(mu), np.asarray(contact, dtype=np.bool_), rows, N)
-    return N
+    out = np.zeros((n, R, 8 * EDGES_PER_CORNER))
+    _edges(np.ascontiguousarray(corner_jt), np.ascontiguousarray(edges, dtype=float),
+           np.ascontiguousarray(contact, dtype=np.bool_), out)
+    return out
 
 
 @njit(cache=True)
-def _edges(jt, E, contact, rows, out):
+def _edges(jt, E, contact, out):
     n, nr, nc, _ = jt.shape
     ne = E.shape[0]
     for i in range(n):
         for r in range(nr):
-            v = rows[r]
             for c in range(nc):
                 if contact[i, c // 2]:
                     j0, j1, j2 = jt[i, r, c, 0], jt[i, r, c, 1], jt[i, r, c, 2]
                     for e in range(ne):
-                        out[i, v, c * ne + e] = j0 * E[e, 0] + j1 * E[e, 1] + j2 * E[e, 2]
+                        out[i, r, c * ne + e] = j0 * E[e, 0] + j1 * E[e, 1] + j2 * E[e, 2]
 
 
 # ---------------------------------------------------------------------------------------------

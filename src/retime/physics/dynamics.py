@@ -25,11 +25,12 @@ Conventions (all SI: metres, kg, seconds, N, N m):
 * the path is smoothed for dynamics by a Gaussian of ``smoothing`` seconds (see
   :mod:`retime.physics.path`); the poses written out are never changed.
 
-Changing gravity, segment masses, friction or torque-limit scale does not rerun the dynamics:
-:func:`dynamics_terms` computes once, per sample and body, the wrench each body needs for the
-``a``, ``b`` and unit-gravity terms (:mod:`retime.physics.tree`) and the Jacobians of the sole
-corners; :meth:`DynamicsTerms.combine` rescales and projects them (the paper's polynomial trick:
-torques are linear in every body's inertial parameters and in gravity).
+Memory grows with what later stages read per sample, not with the bodies: :func:`dynamics_terms`
+keeps the path and the body, and :meth:`DynamicsTerms.combine` computes, for each gravity and set
+of mass factors, the wrench each body needs for the ``a``, ``b`` and unit-gravity terms
+(:mod:`retime.physics.tree`) a chunk of samples at a time, and keeps only their projection
+(torques are linear in every body's inertial parameters and in gravity). N is made from the sole
+corners' Jacobians when it is read (:class:`~retime.physics.contact_basis.ComputedContactBasis`).
 
 Torque limits, when the body file gives none, come from the original motion (as in the paper):
 reference contact forces ``lambda_ref >= 0`` are fitted per sample to the original timing by
@@ -50,8 +51,10 @@ from ..errors import RetimeError
 from ..limits import check_memory
 from .body import Body, load_body, skeleton_tree
 from .constants import DEFAULT_SMOOTHING, STANDARD_GRAVITY, G
-from .contacts import CONTACT_POINTS, at_samples, contact_basis, corner_jacobians, corner_positions, load_contacts
-from .path import path_samples, sample_times
+from .contact_basis import ComputedContactBasis, ContactBasis, as_contact_basis
+from .contacts import (CONTACT_POINTS, EDGES_PER_CORNER, at_samples, compact_contact_basis, corner_jacobians,
+                       corner_positions, corner_rows, friction_edges, load_contacts)
+from .path import PathSamples, path_samples, sample_times
 from .tree import SPHERICAL, TreeModel, kinematics, project, wrenches
 
 NOISE_BAND = 0.1  # seconds: the wider low-pass whose difference bounds the capture's acceleration noise
@@ -68,7 +71,7 @@ class PathDynamics:
     a: np.ndarray  # (n, nv) coefficient of p_ddot:  M(q) q'
     b: np.ndarray  # (n, nv) coefficient of p_dot^2: M(q) q'' + C(q, q') q'
     c: np.ndarray  # (n, nv) constant: gravity generalized force g(q)
-    N: np.ndarray  # (n, nv, K) contact basis J^T P, K = 16 per foot; zero columns when not in contact
+    N: ContactBasis  # (n, nv, K) contact basis J^T P, K = 16 per foot; zero columns when not in contact
     contact: np.ndarray  # (n, 4) bool: left_heel, left_toe, right_heel, right_toe
     tau_lo: np.ndarray  # (nv,) lower torque limits (0 on root rows)
     tau_hi: np.ndarray  # (nv,) upper torque limits (0 on root rows)
@@ -83,7 +86,11 @@ class PathDynamics:
     tau_ref: np.ndarray | None = None  # (n, nv) torques of the original timing (original physics)
     lambda_ref: np.ndarray | None = None  # (n, K) the contact forces behind tau_ref
     corners: np.ndarray | None = None  # (n, 8, 3) world positions of the sole corners
+    sole_path: tuple | None = None  # (root (n, 3), rotations (n, nb, 4)) of the smoothed path, for N
     b_noise: np.ndarray | None = None  # (n, nv) capture-noise band of b on the root rows in stance (see combine)
+
+    def __post_init__(self):
+        self.N = as_contact_basis(self.N)  # a dense (n, nv, K) array is kept on its nonzero rows
 
     @property
     def n_samples(self) -> int:
@@ -99,46 +106,46 @@ class PathDynamics:
         pd2 = np.broadcast_to(np.asarray(pd2, dtype=float), (self.n_samples,))[:, None]
         tau = self.a * pdd + self.b * pd2 + self.c
         if lam is not None:
-            tau = tau - np.einsum("nvk,nk->nv", self.N, lam)
+            tau = tau - self.N.forces(lam)
         return tau
+
+
+CHUNK_SAMPLES = 2048  # samples per pass of kinematics and wrenches: their arrays (10 KB a sample) stay small
 
 
 @dataclass
 class DynamicsTerms:
-    """Everything :class:`PathDynamics` needs, computed once; :meth:`combine` applies parameters."""
+    """The path and the body, from which :meth:`combine` computes :class:`PathDynamics` for any
+    gravity, mass factors, friction and torque-limit scale.
 
-    tree: TreeModel
+    Nothing per body and sample is kept: each new set of parameters runs kinematics, wrenches and
+    their projection again, in chunks of :data:`CHUNK_SAMPLES` (about 1.3 s per minute of 120 Hz
+    motion), and keeps only the combined arrays. Keeping the per-body wrenches instead (the
+    paper's polynomial trick) held 20 KB per sample: 1.5 GB for a 10-minute capture."""
+
+    tree: TreeModel  # the inertial tree (the body's)
     body: Body | None
-    times: np.ndarray
+    times: np.ndarray  # (n,) source times of the samples
     fps: float
     samples_per_frame: int
-    R: np.ndarray  # (n, nb, 3, 3) world joint frames
-    o: np.ndarray  # (n, nb, 3)
-    W: np.ndarray  # (n, 5, nb, 6) per-body wrenches of the a, b, gravity x/y/z terms
-    corner_jt: np.ndarray  # (n, R, 8, 3) J^T of unit world forces at the sole corners, rows corner_rows
+    rotations: np.ndarray  # (F, nb, 4) local joint rotations at the frames, as the dynamics see them
     contact: np.ndarray  # (n, 4)
-    corner_rows: np.ndarray | None = None  # (R,) velocity rows of corner_jt (the legs and the root)
-    corners: np.ndarray | None = None  # (n, 8, 3)
+    root_pos: np.ndarray | None = None  # (F, 3) the floating base's world position, metres (None: fixed base)
+    shape: TreeModel | None = None  # the kinematic tree of the path (None: ``tree``)
+    skeleton: object = None  # for the sole corners (None: no contacts)
+    smoothing: float = DEFAULT_SMOOTHING
+    noise_band: float | None = None  # seconds (see dynamics_terms; None: no capture-noise band)
+    corner_rows: np.ndarray | None = None  # (R,) velocity rows a sole corner's force shows up on
+    corners: np.ndarray | None = None  # (n, 8, 3) world positions of the sole corners
+    sole_path: tuple | None = None  # (root (n, 3), rotations (n, nb, 4)) of the smoothed path, for N
+    root_origin: np.ndarray | None = None  # (n, 3) world position of the root joint (smoothed path)
+    com: np.ndarray | None = None  # (n, 3) world centre of mass (smoothed path)
     friction: float = 0.5
     tau_limit: np.ndarray | None = None  # (nv,) symmetric limits at torque scale 1
     tau_ref: np.ndarray | None = None
     lambda_ref: np.ndarray | None = None
     bind_pose_frames: int = 0  # leading frames held at the first real pose (see bind_pose_frames)
     conform_notes: list = field(default_factory=list)  # what conforming the motion did (dummy root, stretch)
-    # the b-term wrenches (n, 1, nb, 6) and frames of the path low-passed at noise_band (see NOISE_BAND)
-    W_wide: np.ndarray | None = None
-    R_wide: np.ndarray | None = None
-    o_wide: np.ndarray | None = None
-
-    def _contact_basis(self, mu):
-        """N for friction mu, cached (PathDynamics share it: treat it as read-only)."""
-        if self.corner_jt.shape[2] == 0:
-            return np.zeros((len(self.times), self.tree.nv, 0))
-        cache = self.__dict__.setdefault("_N_cache", {})
-        if mu not in cache:
-            cache.clear()
-            cache[mu] = contact_basis(self.corner_jt, mu, self.contact, self.corner_rows, self.tree.nv)
-        return cache[mu]
 
     def joint_torque_limits(self, torque_scale=1.0) -> dict[str, np.ndarray]:
         """{joint: (3,) symmetric limit, N m} of every ball joint, e.g. for ``write_body``."""
@@ -163,42 +170,101 @@ class DynamicsTerms:
             return out
         return np.asarray(mass_factors, dtype=float)
 
+    def path(self, smoothing) -> PathSamples:
+        """The path sampled at ``times``, low-passed at ``smoothing`` seconds."""
+        shape = self.shape or self.tree
+        return path_samples(self.fps, self.root_pos, self.rotations, shape.jtype, shape.vidx, shape.nv,
+                            times=self.times, smoothing=smoothing)
+
+    def chunks(self, n=None):
+        """Slices of :data:`CHUNK_SAMPLES` samples covering ``n`` (default: all samples)."""
+        n = len(self.times) if n is None else n
+        return [slice(k, min(n, k + CHUNK_SAMPLES)) for k in range(0, n, CHUNK_SAMPLES)]
+
+    def kinematics(self, path: PathSamples, part: slice):
+        return kinematics(self.shape or self.tree, path.root_pos[part], path.quats[part], path.qd[part],
+                          path.qdd[part])
+
+    def _generalized(self, f, coef):
+        """abc (n, 3, nv) for mass factors f and the gravity in ``coef``, in chunks of the path."""
+        path = self.path(self.smoothing)
+        abc = np.empty((len(self.times), coef.shape[0], self.tree.nv))
+        for part in self.chunks():
+            kin = self.kinematics(path, part)
+            abc[part] = project(self.tree, kin.R, kin.o, wrenches(self.tree, kin), f, coef)
+        return abc
+
+    def contact_basis(self, mu) -> ContactBasis:
+        """N for friction mu: made from the path's sole corners when read (see ComputedContactBasis)."""
+        n = len(self.times)
+        if self.corner_rows is None:
+            return ContactBasis(np.zeros((n, 0, 0)), np.zeros(0, dtype=np.int64), self.tree.nv)
+        return ComputedContactBasis(SoleBasis(self, friction_edges(mu)), n, self.corner_rows, self.tree.nv,
+                                    8 * EDGES_PER_CORNER)
+
+    def _wide_b(self, f):
+        """b (n, nv) of the path low-passed at noise_band (see NOISE_BAND)."""
+        path = self.path(self.noise_band)
+        out = np.empty((len(self.times), self.tree.nv))
+        for part in self.chunks():
+            kin = self.kinematics(path, part)
+            W = np.ascontiguousarray(wrenches(self.tree, kin)[:, 1:2])
+            out[part] = project(self.tree, kin.R, kin.o, W, f, np.ones((1, 1)))[:, 0]
+        return out
+
+    def _noise(self, abc, b_wide, f):
+        """The capture-noise band of b on the root rows in stance (see NOISE_BAND)."""
+        b_noise = np.zeros_like(b_wide)
+        nr = self.tree.n_root
+        # in flight only gravity acts and the parabola is known well: no noise budget there
+        stance = np.asarray(self.contact, dtype=bool).any(axis=1)
+        # capped: near a takeoff or landing the wider low-pass blurs real impacts, not noise
+        cap = NOISE_CAP * float(np.dot(f, self.tree.mass)) * G
+        diff = np.minimum(np.abs(abc[:, 1, :nr] - b_wide[:, :nr]), cap)
+        # a noise level is a local statistic: the RMS over +-NOISE_BAND (a single difference can
+        # cross zero where the noise is large)
+        win = max(1, int(round(NOISE_BAND * self.fps * self.samples_per_frame)))
+        rms = np.sqrt(uniform_filter1d(diff ** 2, 2 * win + 1, axis=0, mode="constant"))
+        b_noise[stance, :nr] = np.minimum(rms[stance], cap)
+        return b_noise
+
+    def _arrays(self, g, f, mu):
+        """(abc, N, b_noise) for gravity g, mass factors f and friction mu, cached: physics asks for
+        the standard parameters and its own, the editor a few settings in turn."""
+        key = (tuple(g), tuple(f), mu)
+        cache = self.__dict__.setdefault("_combined", {})
+        if key not in cache:
+            coef = np.zeros((3, 5))
+            coef[0, 0] = coef[1, 1] = 1.0
+            coef[2, 2:] = g
+            abc = self._generalized(f, coef)
+            N = self.contact_basis(mu)
+            b_noise = None
+            if self.noise_band and self.noise_band > self.smoothing and self.tree.n_root:
+                b_noise = self._noise(abc, self._wide_b(f), f)
+            while len(cache) >= 2:  # the standard parameters and the latest others
+                cache.pop(next(iter(cache)))
+            cache[key] = (abc, N, b_noise)
+        return cache[key]
+
     def combine(self, gravity=STANDARD_GRAVITY, mass_factors=None, friction=None, torque_scale=1.0,
                 with_reference=True) -> PathDynamics:
         """PathDynamics for a gravity vector (m/s^2), segment mass factors ({name: factor} or (nb,)),
-        friction coefficient (default the body's) and a torque-limit scale, without new dynamics."""
+        friction coefficient (default the body's) and a torque-limit scale. The returned arrays are
+        shared with later calls of the same parameters: treat them as read-only."""
         g = np.asarray(gravity, dtype=float).reshape(3)
         if not np.all(np.isfinite(g)):
             raise RetimeError(f"gravity must be three finite numbers, got {gravity}")
         if not (torque_scale > 0):
             raise RetimeError(f"torque-limit scale must be positive, got {torque_scale}")
         f = self.factors(mass_factors)
-        coef = np.zeros((3, 5))
-        coef[0, 0] = coef[1, 1] = 1.0
-        coef[2, 2:] = g
-        abc = project(self.tree, self.R, self.o, self.W, f, coef)
-        b_noise = None
-        if self.W_wide is not None:
-            b_wide = project(self.tree, self.R_wide, self.o_wide, self.W_wide, f, np.ones((1, 1)))[:, 0]
-            b_noise = np.zeros_like(b_wide)
-            nr = self.tree.n_root
-            # in flight only gravity acts and the parabola is known well: no noise budget there
-            stance = np.asarray(self.contact, dtype=bool).any(axis=1)
-            # capped: near a takeoff or landing the wider low-pass blurs real impacts, not noise
-            cap = NOISE_CAP * float(np.dot(f, self.tree.mass)) * G
-            diff = np.minimum(np.abs(abc[:, 1, :nr] - b_wide[:, :nr]), cap)
-            # a noise level is a local statistic: the RMS over +-NOISE_BAND (a single difference can
-            # cross zero where the noise is large)
-            win = max(1, int(round(NOISE_BAND * self.fps * self.samples_per_frame)))
-            rms = np.sqrt(uniform_filter1d(diff ** 2, 2 * win + 1, axis=0, mode="constant"))
-            b_noise[stance, :nr] = np.minimum(rms[stance], cap)
         mu = self.friction if friction is None else float(friction)
+        abc, N, b_noise = self._arrays(g, f, mu)
         n_root = self.tree.n_root
         hi = np.zeros(self.tree.nv) if self.tau_limit is None else self.tau_limit * torque_scale
         hi[:n_root] = 0.0
         return PathDynamics(
-            times=self.times, a=abc[:, 0], b=abc[:, 1], c=abc[:, 2],
-            N=self._contact_basis(mu),
+            times=self.times, a=abc[:, 0], b=abc[:, 1], c=abc[:, 2], N=N,
             contact=self.contact, tau_lo=-hi, tau_hi=hi.copy(), n_root=n_root, dof_names=self.tree.dof_names,
             total_mass=float(np.dot(f, self.tree.mass)), gravity=g, friction=mu, fps=self.fps,
             samples_per_frame=self.samples_per_frame,
@@ -291,14 +357,15 @@ def _nnls_gram(G, h, tol):
 
 
 @njit(cache=True)
-def _reference_forces(w, N, weight, ridge, lam):
-    n, nv, K = N.shape
+def _reference_forces(w, N, rows, weight, ridge, lam):
+    """N (n, R, K) on velocity rows ``rows`` (sorted; the other rows are zero and add nothing)."""
+    n, nr, K = N.shape
     cols = np.zeros(K, dtype=np.int64)
     for i in range(n):
         m = 0
         for k in range(K):
-            for v in range(nv):
-                if N[i, v, k] != 0.0:
+            for r in range(nr):
+                if N[i, r, k] != 0.0:
                     cols[m] = k
                     m += 1
                     break
@@ -306,13 +373,14 @@ def _reference_forces(w, N, weight, ridge, lam):
             continue
         G = np.zeros((m, m))
         h = np.zeros(m)
-        for v in range(nv):
+        for r in range(nr):
+            v = rows[r]
             w2 = weight[v] * weight[v]
             for a in range(m):
-                na = N[i, v, cols[a]] * w2
+                na = N[i, r, cols[a]] * w2
                 h[a] += na * w[i, v]
                 for b in range(a + 1):
-                    G[a, b] += na * N[i, v, cols[b]]
+                    G[a, b] += na * N[i, r, cols[b]]
         scale = 0.0
         for a in range(m):
             scale += G[a, a]
@@ -330,13 +398,16 @@ def reference_forces(w, N, n_root, root_weight=ROOT_WEIGHT, ridge=RIDGE):
     """Contact forces lambda (n, K) >= 0 that best explain generalized forces w (n, nv): least
     squares with root rows weighted ``root_weight`` and joint rows 1, plus a ridge of ``ridge``
     times the mean diagonal of the normal matrix (non-negative least squares, per sample)."""
+    N = as_contact_basis(N)
     n, nv, K = N.shape
     lam = np.zeros((n, K))
     if K == 0:
         return lam
     weight = np.ones(nv)
     weight[:n_root] = root_weight
-    _reference_forces(np.ascontiguousarray(w), np.ascontiguousarray(N), weight, float(ridge), lam)
+    w = np.ascontiguousarray(w)
+    for part, values in N.chunks():
+        _reference_forces(w[part], values, N.rows, weight, float(ridge), lam[part])
     return lam
 
 
@@ -429,27 +500,69 @@ def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smooth
         root_pos[:held], rotations[:held] = root_pos[held], rotations[held]
     path = path_samples(motion.fps, root_pos, rotations, shape.jtype, shape.vidx, shape.nv, times=times,
                         smoothing=smoothing)
-    kin = kinematics(shape, path.root_pos, path.quats, path.qd, path.qdd)
-    R, o = kin.R, kin.o
-    frames = (o[::spf], R[::spf])  # world frames at the motion's frames (of the smoothed path)
+    frames = frame_kinematics(shape, path, spf)  # world frames at the motion's frames (of the smoothed path)
     body = load_body(body, sk, motion, frames)
     tree = body.tree(sk)
-    W = wrenches(tree, kin)
     contact = at_samples(load_contacts(contacts, motion, body, frames), motion.fps, times)
-    corner_rows, corner_jt = corner_jacobians(tree, body, sk, R, o)
-    terms = DynamicsTerms(tree=tree, body=body, times=times, fps=motion.fps, samples_per_frame=int(samples_per_frame),
-                          R=R, o=o, W=W, corner_jt=corner_jt, corner_rows=corner_rows, contact=contact,
-                          corners=corner_positions(body, sk, R, o), friction=body.friction,
-                          bind_pose_frames=held, conform_notes=conf.notes())
-    if noise_band and noise_band > smoothing and tree.n_root:
-        wide = path_samples(motion.fps, root_pos, rotations, shape.jtype, shape.vidx, shape.nv, times=times,
-                            smoothing=noise_band)
-        kin_w = kinematics(shape, wide.root_pos, wide.quats, wide.qd, wide.qdd)
-        terms.W_wide = np.ascontiguousarray(wrenches(tree, kin_w)[:, 1:2])
-        terms.R_wide, terms.o_wide = kin_w.R, kin_w.o
+    del frames
+    terms = DynamicsTerms(tree=tree, body=body, times=times, fps=motion.fps, samples_per_frame=spf,
+                          rotations=rotations, contact=contact, root_pos=root_pos, shape=shape, skeleton=sk,
+                          smoothing=smoothing, noise_band=noise_band if noise_band and noise_band > smoothing else None,
+                          corner_rows=corner_rows(tree, body, sk),
+                          friction=body.friction, bind_pose_frames=held, conform_notes=conf.notes())
+    terms.corners, terms.root_origin, terms.com = body_points(terms, path)
+    terms.sole_path = (np.array(path.root_pos), path.quats)
+    del path
     if reference:
         add_reference(terms)
     return terms
+
+
+@dataclass
+class SoleBasis:
+    """The contact basis values (m, R, K) of a slice of samples, from the sole corners' world
+    positions and Jacobians along the smoothed path (``terms.sole_path``) and the friction pyramid's
+    ``edges``: what :class:`ComputedContactBasis` calls."""
+
+    terms: DynamicsTerms
+    edges: np.ndarray
+
+    def __call__(self, part: slice) -> np.ndarray:
+        t = self.terms
+        root, quats = t.sole_path
+        shape = t.shape or t.tree
+        still = np.zeros((len(quats[part]), shape.nv))  # world frames do not depend on the velocities
+        kin = kinematics(shape, root[part], quats[part], still, still)
+        _, jt = corner_jacobians(t.tree, t.body, t.skeleton, kin.R, kin.o)
+        return compact_contact_basis(jt, self.edges, t.contact[part])
+
+
+def frame_kinematics(shape: TreeModel, path: PathSamples, spf: int):
+    """(o (F, nb, 3), R (F, nb, 3, 3)): world joint frames at every ``spf``-th sample, in chunks."""
+    idx = np.arange(0, len(path.times), spf)
+    o = np.empty((len(idx), shape.n_bodies, 3))
+    R = np.empty((len(idx), shape.n_bodies, 3, 3))
+    for k in range(0, len(idx), CHUNK_SAMPLES):
+        part = idx[k:k + CHUNK_SAMPLES]
+        kin = kinematics(shape, path.root_pos[part], path.quats[part], path.qd[part], path.qdd[part])
+        o[k:k + len(part)], R[k:k + len(part)] = kin.o, kin.R
+    return o, R
+
+
+def body_points(terms: DynamicsTerms, path: PathSamples):
+    """Per sample of the path: the sole corners (n, 8, 3), the root joint (n, 3) and the centre of
+    mass (n, 3), in world coordinates."""
+    n = len(terms.times)
+    corners, root, com = np.empty((n, 8, 3)), np.empty((n, 3)), np.empty((n, 3))
+    mass = np.asarray(terms.body.mass, dtype=float)
+    local_com = np.asarray(terms.body.com, dtype=float)
+    for part in terms.chunks():
+        kin = terms.kinematics(path, part)
+        corners[part] = corner_positions(terms.body, terms.skeleton, kin.R, kin.o)
+        root[part] = kin.o[:, 0]
+        world_com = np.einsum("fjab,jb->fja", kin.R, local_com) + kin.o
+        com[part] = np.einsum("fja,j->fa", world_com, mass) / max(mass.sum(), 1e-12)
+    return corners, root, com
 
 
 def add_reference(terms: DynamicsTerms) -> None:
@@ -458,7 +571,7 @@ def add_reference(terms: DynamicsTerms) -> None:
     w = d.b + d.c
     lam = reference_forces(w, d.N, d.n_root)
     terms.lambda_ref = lam
-    terms.tau_ref = w - np.einsum("nvk,nk->nv", d.N, lam)
+    terms.tau_ref = w - d.N.forces(lam)
     terms.tau_limit = torque_limits(terms.tree, terms.body, terms.tau_ref)
 
 

@@ -125,4 +125,4 @@ def original_torques(pd, regions):
     When (0, 1) is feasible the centre *is* (0, 1); otherwise the contact forces are those of the
     nearest feasible timing (the centre), and the inertial terms still those of the original speed."""
     lam = regions.center_lam
-    return np.asarray(pd.b) + np.asarray(pd.c) - np.einsum("nvk,nk->nv", np.asarray(pd.N), lam)
+    return np.asarray(pd.b) + np.asarray(pd.c) - pd.N.forces(lam)

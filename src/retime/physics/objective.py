@@ -46,6 +46,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..errors import RetimeError
+from .contact_basis import as_contact_basis
 from .polygon import boundary_closest, edge_projection
 
 OBJECTIVES = ("match", "minimize")
@@ -188,8 +189,8 @@ def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_f
     a = np.ascontiguousarray(np.asarray(pd.a, dtype=float)[:, act])
     b = np.ascontiguousarray(np.asarray(pd.b, dtype=float)[:, act])
     c = np.ascontiguousarray(np.asarray(pd.c, dtype=float)[:, act])
-    N = np.ascontiguousarray(pd.N, dtype=float)  # not N[:, act]: a copy of it was the bake's peak (1.5 GB at 72,000 frames)
-    rows = np.flatnonzero(act).astype(np.int64)
+    basis = as_contact_basis(pd.N)  # read on its own rows: no dense (n, nv, K) copy
+    rows = basis.row_index()[act]  # each actuated row's place in basis.values (-1: always zero)
     tgt = np.ascontiguousarray(np.asarray(target, dtype=float)[:, act])
     if tau_scale is None:
         tau_scale = float(np.sqrt(np.mean(np.sum(tgt ** 2, axis=1)))) or 1.0
@@ -204,7 +205,9 @@ def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_f
     mode = _fan_modes(poff, px, py, cen)
     mode = np.where((mode == 0) & ~has_contact, 1, mode).astype(np.int64)
     wc = np.zeros((len(px), 6))
-    _bake_kernel(a, b, c, N, rows, tgt, poff, px, py, cen, lam, clam, mode, beta / tau_scale ** 2, wc)
+    for part, values in basis.chunks():  # frame by frame: each chunk's wedges are written in place
+        _bake_kernel(a[part], b[part], c[part], values, rows, tgt[part], poff[part.start:part.stop + 1], px, py,
+                     cen[part], lam, clam[part], mode[part], beta / tau_scale ** 2, wc)
     if excess:
         U = float(u_max if u_max is not None else regions.options.u_max)
         vlo, vhi = v_range if v_range is not None else (0.0, float(regions.options.v_max))
@@ -336,7 +339,8 @@ def _coefs(A, B, D, scale, out):
 
 @njit(cache=True)
 def _bake_kernel(a, b, c, N, rows, tgt, poff, px, py, cen, lam, clam, mode, scale, wc):
-    """wc per vertex; N (n, nv, K) is read on the actuated ``rows`` one frame at a time."""
+    """wc per vertex; N (n, R, K) is the contact basis on its own rows (:class:`.contact_basis.ContactBasis`),
+    ``rows`` the place of each actuated row in it (-1: a row of zeros), read one frame at a time."""
     n, nr = a.shape
     K = N.shape[2]
     A = np.empty(nr)
@@ -347,7 +351,10 @@ def _bake_kernel(a, b, c, N, rows, tgt, poff, px, py, cen, lam, clam, mode, scal
         p0, p1 = poff[i], poff[i + 1]
         nvx = p1 - p0
         for r in range(nr):
-            Ni[r] = N[i, rows[r]]
+            if rows[r] >= 0:
+                Ni[r] = N[i, rows[r]]
+            else:
+                Ni[r] = 0.0
         Fc = Ni @ clam[i]
         if mode[i] != 0:
             for r in range(nr):
@@ -775,7 +782,7 @@ def unbaked(pd, regions, target, obj: BakedObjective) -> UnbakedObjective:
     from .forces import fan_model
 
     act = actuated_mask(pd)
-    K = np.asarray(pd.N).shape[2]
+    K = pd.N.shape[2]
     lam_aff = np.zeros((len(obj.arrays.px), 3, K))
     for i in range(regions.n_frames):
         fan = fan_model(regions, i)
@@ -785,7 +792,7 @@ def unbaked(pd, regions, target, obj: BakedObjective) -> UnbakedObjective:
             lam_aff[p0 + k] = (L0, Lu, Lv)
     arr = lambda x: np.ascontiguousarray(np.asarray(x, dtype=float)[:, act])  # noqa: E731
     return UnbakedObjective(obj, arr(pd.a), arr(pd.b), arr(pd.c), arr(target),
-                            np.ascontiguousarray(np.asarray(pd.N, dtype=float)[:, act, :]), lam_aff,
+                            as_contact_basis(pd.N).rows_dense(np.flatnonzero(act)), lam_aff,
                             obj.beta / obj.tau_scale ** 2)
 
 

@@ -106,7 +106,7 @@ def check_source(motion, terms, regions) -> SourceCheck:
             "a treadmill, an in-place loop, foot skating or noisy tracking"
         causes.append(f"the feet move while at floor height (median {slide:.2f} m/s, {how}); physics assumes a "
                       "static floor and feet that stay where they land")
-    root = np.asarray(terms.o)[::spf, 0]
+    root = np.asarray(terms.root_origin)[::spf]
     if len(root) > 2 and float(np.max(np.std(root, axis=0))) < STILL_ROOT_M and not _frozen(motion):
         causes.append("the root never moves: an in-place (root-locked) export, which has no travel or "
                       "balance to keep; physics needs the character's own root motion")

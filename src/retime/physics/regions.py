@@ -353,7 +353,7 @@ def compute_regions(pd, options: RegionOptions | None = None, reference=None, fr
 def _region_set(pd, idx, results, opts, bw) -> RegionSet:
     """The frames' results as one :class:`RegionSet`."""
     n = len(idx)
-    K = np.asarray(pd.N).shape[2]
+    K = pd.N.shape[2]
     offsets = np.zeros(n + 1, dtype=np.int64)
     offsets[1:] = np.cumsum([len(r.verts) for r in results])
     contact = getattr(pd, "contact", None)
