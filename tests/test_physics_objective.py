@@ -173,8 +173,8 @@ def test_unbaked_evaluation_equals_baked(setup):
 
 
 def test_bake_reads_the_actuated_rows_in_place_exactly_as_from_a_copy(setup):
-    """The bake kernel reads N on the actuated rows frame by frame (no (n, rows, K) copy): the same
-    coefficients, bit for bit, as the kernel run on that copy."""
+    """The bake kernel reads a, b, c, the target and N on the actuated rows frame by frame (no
+    (n, rows) or (n, rows, K) copies): the same coefficients, bit for bit, as the kernel run on copies."""
     pd, rs, target = setup
     obj = O.bake(pd, rs, target, alpha=1.0, beta=0.7, excess=False, metric="plane")
     act = O.actuated_mask(pd)
@@ -183,7 +183,8 @@ def test_bake_reads_the_actuated_rows_in_place_exactly_as_from_a_copy(setup):
     poff = np.asarray(rs.offsets, np.int64)
     px, py = np.ascontiguousarray(rs.verts[:, 0]), np.ascontiguousarray(rs.verts[:, 1])
     wc = np.zeros((len(px), 6))
-    O._bake_kernel(a, b, c, copy, np.arange(copy.shape[1]), tgt, poff, px, py, np.ascontiguousarray(rs.center),
+    every = np.arange(copy.shape[1])
+    O._bake_kernel(a, b, c, tgt, every, copy, every, poff, px, py, np.ascontiguousarray(rs.center),
                    np.ascontiguousarray(rs.lam), np.ascontiguousarray(rs.center_lam), obj.arrays.mode, 0.7 / obj.tau_scale ** 2, wc)
     assert act.sum() < act.size  # the root rows are left out, so the rows really are a subset
     assert np.array_equal(wc, obj.arrays.wc)

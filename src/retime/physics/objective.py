@@ -185,15 +185,13 @@ def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_f
     import time
 
     t0 = time.perf_counter()
-    act = actuated_mask(pd)
-    a = np.ascontiguousarray(np.asarray(pd.a, dtype=float)[:, act])
-    b = np.ascontiguousarray(np.asarray(pd.b, dtype=float)[:, act])
-    c = np.ascontiguousarray(np.asarray(pd.c, dtype=float)[:, act])
+    act = np.flatnonzero(actuated_mask(pd)).astype(np.int64)
+    # read in place on the actuated rows: copies of them were 0.2 GB of a 10-minute capture's peak
+    a, b, c, tgt = (np.asarray(x, dtype=float) for x in (pd.a, pd.b, pd.c, target))
     basis = as_contact_basis(pd.N)  # read on its own rows: no dense (n, nv, K) copy
     rows = basis.row_index()[act]  # each actuated row's place in basis.values (-1: always zero)
-    tgt = np.ascontiguousarray(np.asarray(target, dtype=float)[:, act])
     if tau_scale is None:
-        tau_scale = float(np.sqrt(np.mean(np.sum(tgt ** 2, axis=1)))) or 1.0
+        tau_scale = float(np.sqrt(np.mean(np.sum(tgt[:, act] ** 2, axis=1)))) or 1.0
     poff = np.asarray(regions.offsets, dtype=np.int64)
     px = np.ascontiguousarray(regions.verts[:, 0])
     py = np.ascontiguousarray(regions.verts[:, 1])
@@ -206,7 +204,7 @@ def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_f
     mode = np.where((mode == 0) & ~has_contact, 1, mode).astype(np.int64)
     wc = np.zeros((len(px), 6))
     for part, values in basis.chunks():  # frame by frame: each chunk's wedges are written in place
-        _bake_kernel(a[part], b[part], c[part], values, rows, tgt[part], poff[part.start:part.stop + 1], px, py,
+        _bake_kernel(a[part], b[part], c[part], tgt[part], act, values, rows, poff[part.start:part.stop + 1], px, py,
                      cen[part], lam, clam[part], mode[part], beta / tau_scale ** 2, wc)
     if excess:
         U = float(u_max if u_max is not None else regions.options.u_max)
@@ -338,10 +336,12 @@ def _coefs(A, B, D, scale, out):
 
 
 @njit(cache=True)
-def _bake_kernel(a, b, c, N, rows, tgt, poff, px, py, cen, lam, clam, mode, scale, wc):
-    """wc per vertex; N (n, R, K) is the contact basis on its own rows (:class:`.contact_basis.ContactBasis`),
-    ``rows`` the place of each actuated row in it (-1: a row of zeros), read one frame at a time."""
-    n, nr = a.shape
+def _bake_kernel(a, b, c, tgt, act, N, rows, poff, px, py, cen, lam, clam, mode, scale, wc):
+    """wc per vertex. a, b, c, tgt (n, nv) are read on the actuated rows ``act`` (nr,) in place; N
+    (n, R, K) is the contact basis on its own rows (:class:`.contact_basis.ContactBasis`), ``rows``
+    the place of each actuated row in it (-1: a row of zeros), read one frame at a time."""
+    n = a.shape[0]
+    nr = len(act)
     K = N.shape[2]
     A = np.empty(nr)
     B = np.empty(nr)
@@ -358,9 +358,9 @@ def _bake_kernel(a, b, c, N, rows, tgt, poff, px, py, cen, lam, clam, mode, scal
         Fc = Ni @ clam[i]
         if mode[i] != 0:
             for r in range(nr):
-                A[r] = a[i, r]
-                B[r] = b[i, r]
-                D[r] = c[i, r] - Fc[r] - tgt[i, r]
+                A[r] = a[i, act[r]]
+                B[r] = b[i, act[r]]
+                D[r] = c[i, act[r]] - Fc[r] - tgt[i, act[r]]
             for k in range(nvx):
                 _coefs(A, B, D, scale, wc[p0 + k])
             continue
@@ -381,9 +381,9 @@ def _bake_kernel(a, b, c, N, rows, tgt, poff, px, py, cen, lam, clam, mode, scal
                 nlu = m00 * dk + m10 * dl
                 nlv = m01 * dk + m11 * dl
                 nl0 = Fc[r] - cu * nlu - cv * nlv
-                A[r] = a[i, r] - nlu
-                B[r] = b[i, r] - nlv
-                D[r] = c[i, r] - nl0 - tgt[i, r]
+                A[r] = a[i, act[r]] - nlu
+                B[r] = b[i, act[r]] - nlv
+                D[r] = c[i, act[r]] - nl0 - tgt[i, act[r]]
             _coefs(A, B, D, scale, wc[p0 + k])
 
 
