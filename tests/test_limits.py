@@ -80,6 +80,6 @@ def test_bad_guided_numbers_are_refused(tmp_path, capsys, option):
 
 
 def test_physics_is_refused_before_it_would_exhaust_memory(tmp_path, capsys, monkeypatch):
-    monkeypatch.setenv("RETIME_MAX_MEMORY", "20M")  # 16_06: about 63 MB at its peak
+    monkeypatch.setenv("RETIME_MAX_MEMORY", "8M")  # 16_06: planned as 12.6 MB (1,000 bytes a frame and joint)
     code, err = _err(["physics", CLIP, "-o", tmp_path / "o.bvh", "--scale", "0.5"], capsys)
     assert code == 2 and "physics on 407 frames would need about" in err and not (tmp_path / "o.bvh").exists()

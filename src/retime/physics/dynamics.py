@@ -458,7 +458,9 @@ def bind_pose_frames(motion, rest_deg=2.0, max_seconds=0.25) -> int:
     return 0
 
 
-BYTES_PER_FRAME_JOINT = 5_000  # peak memory of a physics retiming per source frame and joint
+# peak memory of a physics retiming per source frame and joint, with a margin: a 10-minute capture at
+# 120 Hz (72,001 frames, 31 joints) peaks 1.44 GB above its start (benchmarks/scaling.py), 650 bytes
+BYTES_PER_FRAME_JOINT = 1_000
 
 
 def conformed(motion):
@@ -484,7 +486,6 @@ def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smooth
     of the capped differences, zero in flight). Captured accelerations are
     only known to about that much: twice-differentiated marker noise and the slow sway of a still
     stance look alike, and played k times faster both grow k^2-fold (see :mod:`.regions`)."""
-    # measured: 13_29 (4,592 frames, 31 joints) peaks at 705 MB through the regions and the objective
     check_memory(BYTES_PER_FRAME_JOINT * motion.n_frames * motion.skeleton.n_joints * max(1, int(samples_per_frame)),
                  f"physics on {motion.n_frames:,} frames")
     conf = conformed(motion)
