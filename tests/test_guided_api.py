@@ -239,3 +239,17 @@ def test_identical_columns_finds_what_unique_finds():
     got_first, got_counts = identical_columns(v, cols)
     assert got_first.tolist() == cols[first[order]].tolist()
     assert got_counts.tolist() == counts[order].tolist()
+
+
+def test_heuristic_scores_in_one_pass(jump, monkeypatch):
+    """The coarse rows and the corridor's vertices are scored together: one pass over the grid
+    (each pass repeats the matrix products with the whole reference), and the same warp."""
+    from retime.guided.problem import WarpProblem
+
+    before = guided_solve(jump, scale=0.5, fast=True)
+    passes = []
+    scores = WarpProblem.scores
+    monkeypatch.setattr(WarpProblem, "scores", lambda self, mask=None: passes.append(mask) or scores(self, mask))
+    after = guided_solve(jump, scale=0.5, fast=True)
+    assert len(passes) == 1
+    assert after.frames.tobytes() == before.frames.tobytes() and after.objective == before.objective
