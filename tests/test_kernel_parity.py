@@ -1,7 +1,6 @@
 """Each compiled hot kernel against its plain NumPy twin, on random and on real inputs: polygon
 closest point and distance, half-plane clipping (physics/polygon.py), the simplex phase 2 and
-shadow-vertex walk (physics/simplex.py), the objective's evaluation (physics/objective.py) and
-guided's exact kNN scores with and without pruning (guided/score.py).
+shadow-vertex walk (physics/simplex.py) and the objective's evaluation (physics/objective.py).
 The twins are written without numba and without the kernels' bookkeeping (no B^-1 updates, no
 wedge hints, bisection for Newton), so an error in either side shows as a mismatch."""
 from __future__ import annotations
@@ -256,52 +255,3 @@ def test_objective_twin_synthetic():
 
 def test_objective_twin_real(real):
     _check_objective(real[2], [3, 4, 5])
-
-
-# ---------------------------------------------------------------------------------------- guided kNN
-
-def _pruned_and_unpruned(x, z, s, k, mask=None):
-    from retime.guided.features import FeatureWeights
-    from retime.guided.score import score_table
-
-    co = FeatureWeights().coefficients(30.0)
-    return (score_table(x, z, co, s, k, mask=mask, prune=True), score_table(x, z, co, s, k, mask=mask, prune=False))
-
-
-@pytest.mark.parametrize("n,r,s,k", [(40, 30, 4, 3), (50, 2100, 8, 3), (30, 1500, 5, 1), (25, 1100, 3, 2)])
-def test_knn_pruning_twin_random(n, r, s, k):
-    """Skipping groups of references that cannot be among the nearest changes no bit of the scores
-    (references over several chunks of the kernel); both match the NumPy brute force."""
-    from retime.guided.features import FeatureWeights
-    from retime.guided.score import score_table_bruteforce
-
-    rng = np.random.default_rng(n + r)
-    x = np.cumsum(rng.normal(scale=0.05, size=(n, 6)), axis=0)
-    z = np.cumsum(rng.normal(scale=0.05, size=(r, 6)), axis=0)
-    mask = rng.random((n, s)) < 0.8
-    pruned, unpruned = _pruned_and_unpruned(x, z, s, k, mask)
-    assert pruned.tobytes() == unpruned.tobytes()
-    brute = score_table_bruteforce(x, z, FeatureWeights().coefficients(30.0), s, k)
-    fin = np.isfinite(pruned)
-    np.testing.assert_allclose(pruned[fin], brute[fin], rtol=1e-9, atol=1e-9)
-
-
-def test_knn_pruning_twin_tight_bounds():
-    """A reference that holds still for 24 frames at a time: within a group of eight references the
-    values are equal, the bound is exact, and a wrong skip would show."""
-    rng = np.random.default_rng(17)
-    z = np.repeat(rng.normal(scale=0.3, size=(120, 6)), 24, axis=0)
-    x = np.repeat(rng.normal(scale=0.3, size=(20, 6)), 3, axis=0)
-    pruned, unpruned = _pruned_and_unpruned(x, z, 6, 3)
-    assert pruned.tobytes() == unpruned.tobytes()
-
-
-def test_knn_pruning_twin_real():
-    """The same on CMU poses: the walk against the jumps and itself."""
-    from retime.guided.api import analysis_poses
-
-    walk = analysis_poses(load_motion(bundled_path("16_16.amc")))
-    jumps = np.vstack([analysis_poses(load_motion(bundled_path(c))) for c in ("16_06.amc", "16_03.amc", "16_33.amc")])
-    for z in (jumps, walk):
-        pruned, unpruned = _pruned_and_unpruned(walk, z, 8, 3)
-        assert pruned.tobytes() == unpruned.tobytes()

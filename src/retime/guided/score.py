@@ -71,27 +71,8 @@ def _mean_root(H, i, j, d, e, a2, b2, c2, top, K):
     return acc / K
 
 
-@njit(cache=True, inline="always")
-def _three_smallest(st):
-    """The three smallest of the 24 lane survivors ``st`` (ascending)."""
-    m1 = m2 = m3 = INF
-    for q in range(24):
-        v = st[q]
-        if v < m3:
-            if v < m2:
-                m3 = m2
-                if v < m1:
-                    m2 = m1
-                    m1 = v
-                else:
-                    m2 = v
-            else:
-                m3 = v
-    return m1, m2, m3
-
-
 @njit(cache=True, parallel=True, fastmath={"nsz", "contract"})
-def _knn3_kernel(PI, PJ, PK, PKmax, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, prune, out):
+def _knn3_kernel(PI, PJ, PK, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out):
     """Exact K <= 3 smallest distances for every triple with middle frame j in [j0, j1).
 
     For a vertex (i, j): ``base[r] = |z_r|^2 - 2 (PI[i, r] + PJ[j, r])`` and, for each
@@ -103,12 +84,6 @@ def _knn3_kernel(PI, PJ, PK, PKmax, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, mask
     frame stay in the L2 cache while its s^2 triples are scanned (the network state of each
     triple is kept between chunks). Arrays are padded to Rp references (zz with inf).
     Slices with literal indices keep numba from emitting negative-index checks.
-
-    With ``prune``, a group of eight references is skipped for a triple when a lower bound of
-    all eight values, (least base value of the group) - 2 (``PKmax``: largest PK value of the
-    group), exceeds the triple's third smallest value at the start of the chunk: none of them can
-    be among the three smallest. The bound is rounded like the values (rounding is monotonic),
-    so the three smallest values, and the scores, are the same bits as without pruning.
     """
     Rp = PK.shape[1]
     for j in prange(j0, j1):
@@ -117,17 +92,10 @@ def _knn3_kernel(PI, PJ, PK, PKmax, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, mask
             continue
         state = np.full((s, ne, 24), INF)
         base = np.empty((s, min(_CHUNK, Rp)))
-        group_min = np.empty((s, min(_CHUNK, Rp) // 8))
-        third = np.full((s, ne), INF)  # each triple's third smallest value so far
         top = np.empty(3)
         rj = j - t0
         pj = PJ[rj]
-        chunks = (Rp + _CHUNK - 1) // _CHUNK
-        # the chunk at j's own time first (the nearest references of slow triples when the input is its own
-        # reference): tight bounds early. The order changes no value: the network keeps exact minima.
-        first = min(chunks - 1, (j * chunks) // n)
-        for c in range(chunks):
-            r0 = ((first + c) % chunks) * _CHUNK
+        for r0 in range(0, Rp, _CHUNK):
             L = min(_CHUNK, Rp - r0)
             for d in range(1, s + 1):
                 i = j - d
@@ -139,14 +107,8 @@ def _knn3_kernel(PI, PJ, PK, PKmax, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, mask
                 bd = base[d - 1]
                 for q in range(L):
                     bd[q] = zz[r0 + q] - 2.0 * (pi[r0 + q] + pj[r0 + q])
-                gm = group_min[d - 1]
-                for g in range(L // 8):
-                    gm[g] = min(bd[8 * g], bd[8 * g + 1], bd[8 * g + 2], bd[8 * g + 3],
-                                bd[8 * g + 4], bd[8 * g + 5], bd[8 * g + 6], bd[8 * g + 7])
                 for e in range(ne):
                     row = PK[rj + 1 + e, r0:r0 + L]
-                    row_max = PKmax[rj + 1 + e, r0 // 8:(r0 + L) // 8]
-                    bound = third[d - 1, e]
                     st = state[d - 1, e]
                     a0 = st[0]
                     a1 = st[1]
@@ -172,10 +134,7 @@ def _knn3_kernel(PI, PJ, PK, PKmax, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, mask
                     c5 = st[21]
                     c6 = st[22]
                     c7 = st[23]
-                    for g in range(L // 8):
-                        if gm[g] - 2.0 * row_max[g] > bound:
-                            continue
-                        q = 8 * g
+                    for q in range(0, L, 8):
                         bb = bd[q:q + 8]
                         rr = row[q:q + 8]
                         v0 = bb[0] - 2.0 * rr[0]
@@ -235,8 +194,6 @@ def _knn3_kernel(PI, PJ, PK, PKmax, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, mask
                     st[21] = c5
                     st[22] = c6
                     st[23] = c7
-                    if prune:
-                        third[d - 1, e] = _three_smallest(st)[2]
         for d in range(1, s + 1):
             i = j - d
             if i < 0:
@@ -244,7 +201,20 @@ def _knn3_kernel(PI, PJ, PK, PKmax, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, mask
             if not mask[j, d - 1]:
                 continue
             for e in range(ne):
-                m1, m2, m3 = _three_smallest(state[d - 1, e])
+                st = state[d - 1, e]
+                m1 = m2 = m3 = INF
+                for q in range(24):
+                    v = st[q]
+                    if v < m3:
+                        if v < m2:
+                            m3 = m2
+                            if v < m1:
+                                m2 = m1
+                                m1 = v
+                            else:
+                                m2 = v
+                        else:
+                            m3 = v
                 top[0] = m1
                 top[1] = m2
                 top[2] = m3
@@ -308,26 +278,11 @@ def _projections(G, st, a2, b2, c2, PI, PJ, PK):
             pk[r] = b2 * V + c2 * A
 
 
-@njit(cache=True, parallel=True)
-def _group_maxima(P, rows, out):
-    """out[t, g] = the largest of P[t, 8 g : 8 g + 8] for the first ``rows`` rows."""
-    for t in prange(rows):
-        p = P[t]
-        o = out[t]
-        for g in range(o.shape[0]):
-            q = 8 * g
-            o[g] = max(p[q], p[q + 1], p[q + 2], p[q + 3], p[q + 4], p[q + 5], p[q + 6], p[q + 7])
-
-
 _F8_2 = numba.float64[:, ::1]
 _KNN_SIG = numba.void(
     _F8_2, _F8_2, _F8_2, numba.float64[::1], _F8_2, numba.int64, numba.int64, numba.int64,
     numba.int64, numba.int64, numba.int64, numba.float64, numba.float64, numba.float64,
     numba.boolean[:, ::1], numba.float64[:, :, ::1])
-_KNN3_SIG = numba.void(
-    _F8_2, _F8_2, _F8_2, _F8_2, numba.float64[::1], _F8_2, numba.int64, numba.int64, numba.int64,
-    numba.int64, numba.int64, numba.int64, numba.float64, numba.float64, numba.float64,
-    numba.boolean[:, ::1], numba.boolean, numba.float64[:, :, ::1])
 
 
 @njit(cache=True)
@@ -393,8 +348,7 @@ def effective_k(k: int, r: int, st: int = 1) -> int:
     return max(1, min(int(k), int(r) - 2 * int(st)))
 
 
-def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_stride=1, block_bytes=96 << 20,
-                prune=True):
+def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_stride=1, block_bytes=96 << 20):
     """Local scores of all frame triples with gaps <= s.
 
     x: (n, D) input poses at the analysis rate (already low-passed);
@@ -402,8 +356,6 @@ def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_st
     mask: optional (n, s) bool, ``mask[j, d-1]`` = scores with vertex (j-d, j) are wanted;
     ref_stride: reference features come from frames (r - st, r, r + st) (every r: a reference
     played at 1/st of the analysis rate, all phases kept).
-    prune: skip references that cannot be among a triple's K nearest (K <= 3; the same scores,
-    bit for bit, in less time: see :func:`_knn3_kernel`).
     Returns F (n, s, table_width(s)) float64, see the module docstring for the layout.
     """
     st = int(ref_stride)
@@ -430,9 +382,8 @@ def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_st
     R = r - 2 * st
     zz = _reference_norms(zc, st, a, b, c)
     H = _gram_band(xc, 2 * s)
+    kernel = compiled(_knn3_kernel if K <= 3 else _knn_kernel, _KNN_SIG)
     Rp = 8 * ((R + 7) // 8)  # PK rows padded to whole groups of eight references
-    # Blocks of input frames: a block's products are one BLAS call, whose rounding can depend on
-    # where a frame falls in the call, so the blocks (not PKmax, an eighth of PK) set the memory.
     rows = int(min(n + 2 * s, max(64, block_bytes // (8 * (r + 3 * Rp)))))
     step = max(1, rows - 2 * s)
     zt = np.ascontiguousarray(zc.T)
@@ -442,7 +393,6 @@ def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_st
     PK = np.empty((rows, Rp))
     for P_ in (PI, PJ, PK):
         P_[:, R:] = 0.0
-    PKmax = np.empty((rows, Rp // 8))
     zzp = np.full(Rp, INF)
     zzp[:R] = zz
     j0 = 0
@@ -455,12 +405,7 @@ def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_st
         _projections(G[:nt], st, a2, b2, c2, PI, PJ, PK)
         # small dynamic chunks: a thread that the OS preempts does not hold up the other
         with numba.parallel_chunksize(max(1, (j1 - j0) // (16 * numba.get_num_threads()))):
-            if K <= 3:
-                _group_maxima(PK, nt, PKmax)
-                compiled(_knn3_kernel, _KNN3_SIG)(PI, PJ, PK, PKmax, zzp, H, t0, j0, j1, n, s, K, a2, b2, c2,
-                                                  mask, bool(prune), out)
-            else:
-                compiled(_knn_kernel, _KNN_SIG)(PI, PJ, PK, zzp, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out)
+            kernel(PI, PJ, PK, zzp, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out)
         j0 = j1
     return out
 
