@@ -197,3 +197,59 @@ def test_upper_bound_falls_back_when_its_corridor_cannot_hold_the_warp(jump, mon
     monkeypatch.setattr(heuristic, "corridor", infeasible_first)
     got = guided_solve(jump, scale=0.5)
     assert len(calls) > 1 and got.exact and np.array_equal(got.frames, want)
+
+
+# --- bounded memory: the clip-rate poses are made in chunks; the chunks must not change a bit
+def test_root_frame_poses_in_chunks_are_the_same(jump):
+    from retime.guided.api import root_frame_poses
+
+    whole = root_frame_poses(jump, 1.0, chunk_frames=jump.n_frames)
+    for chunk in (1, 7, 64):
+        assert root_frame_poses(jump, 1.0, chunk_frames=chunk).tobytes() == whole.tobytes()
+
+
+def test_analysis_samples_in_column_chunks_are_the_same(jump):
+    from scipy.interpolate import CubicSpline
+
+    from retime.guided.api import _analysis_samples, root_frame_poses
+    from retime.guided.features import lowpass
+
+    poses = root_frame_poses(jump, 1.0).reshape(jump.n_frames, -1)
+    grid = np.linspace(0.0, jump.duration, 57)
+    rate = np.arange(int(jump.duration * 30) + 1) / 30
+    # what one spline of all columns gives (the unchunked computation)
+    spline = CubicSpline(np.arange(jump.n_frames) / jump.fps, lowpass(poses, 12), axis=0)
+    whole = [spline(np.clip(t, 0.0, (jump.n_frames - 1) / jump.fps)) for t in (grid, rate)]
+    for chunk in (1, 3, 8, poses.shape[1]):
+        got = _analysis_samples(poses, jump.fps, 12, [grid, rate], chunk_columns=chunk)
+        assert [g.tobytes() for g in got] == [w.tobytes() for w in whole]
+
+
+def test_identical_columns_finds_what_unique_finds():
+    from retime.guided.features import identical_columns
+
+    rng = np.random.default_rng(3)
+    v = rng.normal(size=(50, 6))
+    v = v[:, [0, 1, 0, 2, 3, 1, 4, 0, 5]]  # columns 0, 2, 7 and 1, 5 are equal
+    v[:, 4] = 0.0
+    v[:, 6] = np.where(np.arange(50) % 2, -0.0, 0.0)  # equal to column 4 as floats, as np.unique counts it
+    cols = np.array([0, 1, 2, 3, 4, 5, 6, 7, 8])
+    _, first, counts = np.unique(v[:, cols], axis=1, return_index=True, return_counts=True)
+    order = np.argsort(first)
+    got_first, got_counts = identical_columns(v, cols)
+    assert got_first.tolist() == cols[first[order]].tolist()
+    assert got_counts.tolist() == counts[order].tolist()
+
+
+def test_heuristic_scores_in_one_pass(jump, monkeypatch):
+    """The coarse rows and the corridor's vertices are scored together: one pass over the grid
+    (each pass repeats the matrix products with the whole reference), and the same warp."""
+    from retime.guided.problem import WarpProblem
+
+    before = guided_solve(jump, scale=0.5, fast=True)
+    passes = []
+    scores = WarpProblem.scores
+    monkeypatch.setattr(WarpProblem, "scores", lambda self, mask=None: passes.append(mask) or scores(self, mask))
+    after = guided_solve(jump, scale=0.5, fast=True)
+    assert len(passes) == 1
+    assert after.frames.tobytes() == before.frames.tobytes() and after.objective == before.objective

@@ -62,29 +62,47 @@ class GuidedResult:
     stats: SolveStats = field(default_factory=SolveStats)
 
 
-def root_frame_poses(motion: Motion, root_height: float = 0.0) -> np.ndarray:
+#: frames per forward-kinematics pass of :func:`root_frame_poses` (each frame is computed on its
+#: own, so the numbers are the same; a whole long clip at once held ~10 temporaries of its size)
+POSE_CHUNK_FRAMES = 4096
+#: pose columns per low-pass and spline in :func:`_analysis_samples` (columns are filtered and
+#: interpolated independently; one spline of every column held ~9 copies of the clip's poses)
+SPLINE_CHUNK_COLUMNS = 8
+
+
+def root_frame_poses(motion: Motion, root_height: float = 0.0, chunk_frames: int = POSE_CHUNK_FRAMES) -> np.ndarray:
     """(F, J, 3) joint positions in the floating base's coordinate frame
     (:func:`retime.motion.rig.floating_base`; dummy roots above it and props beside the body under
     them are zero rows), in metres.
 
     With ``root_height`` > 0 one more row (F, J+1, 3) holds the base's height above the ground
     along the file's up axis (detected or given, :mod:`retime.motion.frame`; m) times that weight
-    in its y slot (x and z zero).
+    in its y slot (x and z zero). Computed ``chunk_frames`` frames at a time.
     """
-    from retime.motion.frame import up_vector
     from retime.motion.rig import base_and_props
 
-    pos, ori = forward_kinematics(motion)
+    base, props = base_and_props(motion.skeleton)
+    rows = motion.skeleton.n_joints + (1 if root_height > 0 else 0)
+    out = np.empty((motion.n_frames, rows, 3))
+    for f0 in range(0, motion.n_frames, int(chunk_frames)):
+        f1 = min(motion.n_frames, f0 + int(chunk_frames))
+        _root_frame_chunk(motion, f0, f1, base, props, root_height, out[f0:f1])
+    return out
+
+
+def _root_frame_chunk(motion, f0, f1, base, props, root_height, out):
+    """Frames f0..f1-1 of :func:`root_frame_poses`, written into ``out``."""
+    from retime.motion.frame import up_vector
+
     sk = motion.skeleton
-    base, props = base_and_props(sk)
-    rel = positions_in_root_frame(pos, pos[:, base], ori[:, base]) * float(sk.meters_per_unit)
-    rel[:, :base] = 0.0
-    rel[:, props] = 0.0  # IK targets and markers beside the body are not its pose
+    pos, ori = forward_kinematics(motion, motion.rotations[f0:f1], motion.translations[f0:f1])
+    J = sk.n_joints
+    out[:, :J] = positions_in_root_frame(pos, pos[:, base], ori[:, base]) * float(sk.meters_per_unit)
+    out[:, :base] = 0.0
+    out[:, props] = 0.0  # IK targets and markers beside the body are not its pose
     if root_height > 0:
-        h = np.zeros((rel.shape[0], 1, 3))
-        h[:, 0, 1] = (pos[:, base] @ up_vector(sk.up)) * float(sk.meters_per_unit) * root_height
-        rel = np.concatenate([rel, h], axis=1)
-    return rel
+        out[:, J] = 0.0
+        out[:, J, 1] = (pos[:, base] @ up_vector(sk.up)) * float(sk.meters_per_unit) * root_height
 
 
 def _check_reference(motion: Motion, reference: Motion):
@@ -109,14 +127,28 @@ def _pose_pair(motion, reference, root_height=0.0):
     return compact_columns(x, z)
 
 
-def _sample(poses, fps, times):
-    """Poses (F, D) at ``fps`` sampled at ``times`` (s) with a cubic spline."""
+def _sampler(poses, fps):
+    """A function of times (s) giving the poses (F, D) at ``fps`` there (cubic spline)."""
     F = poses.shape[0]
     if F < 4:
-        u = np.clip(np.asarray(times) * fps, 0, F - 1)
-        return np.stack([np.interp(u, np.arange(F), poses[:, c]) for c in range(poses.shape[1])], axis=1)
+        def linear(times):
+            u = np.clip(np.asarray(times) * fps, 0, F - 1)
+            return np.stack([np.interp(u, np.arange(F), poses[:, c]) for c in range(poses.shape[1])], axis=1)
+        return linear
     spline = CubicSpline(np.arange(F) / fps, poses, axis=0)
-    return spline(np.clip(times, 0.0, (F - 1) / fps))
+    return lambda times: spline(np.clip(times, 0.0, (F - 1) / fps))
+
+
+def _analysis_samples(poses, fps, width, times, chunk_columns=SPLINE_CHUNK_COLUMNS):
+    """Poses (F, D) at ``fps``, low-passed over ``width`` frames, at each array of ``times`` (s):
+    a list of (len(t), D) arrays. A few columns at a time, each low-passed and splined once."""
+    out = [np.empty((len(t), poses.shape[1])) for t in times]
+    for c0 in range(0, poses.shape[1], int(chunk_columns)):
+        c1 = min(poses.shape[1], c0 + int(chunk_columns))
+        sample = _sampler(lowpass(poses[:, c0:c1], width), fps)
+        for t, o in zip(times, out):
+            o[:, c0:c1] = sample(t)
+    return out
 
 
 def analysis_poses(motion: Motion, fps: float = 30.0, prefilter: float = 0.1, times=None,
@@ -124,10 +156,10 @@ def analysis_poses(motion: Motion, fps: float = 30.0, prefilter: float = 0.1, ti
     """(frames, D) low-passed root-frame joint positions (m) at ``fps`` (or at ``times`` seconds)."""
     x = root_frame_poses(motion, root_height)
     x = x.reshape(x.shape[0], -1)
-    x = lowpass(x, max(1, int(round(prefilter * motion.fps))))
     if times is None:
         times = np.arange(int(math.floor(motion.duration * fps + 1e-9)) + 1) / fps
-    return _sample(x, motion.fps, np.asarray(times, dtype=float))
+    width = max(1, int(round(prefilter * motion.fps)))
+    return _analysis_samples(x, motion.fps, width, [np.asarray(times, dtype=float)])[0]
 
 
 def _segments(S, T, keytimes, A):
@@ -254,8 +286,6 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
 
     # --- poses on the grid and at the analysis rate
     x_src, z_src = _pose_pair(motion, reference, weights.root_height)
-    x_src = lowpass(x_src, max(1, int(round(prefilter * motion.fps))))
-    z_src = lowpass(z_src, max(1, int(round(prefilter * reference.fps))))
     grid, fixed = [], {}
     for q in range(len(src) - 1):
         N = max(1, int(round((src[q + 1] - src[q]) * A * ups[q])))
@@ -265,9 +295,14 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
     grid.append(np.array([S]))
     grid_times = np.concatenate(grid)
     n = grid_times.size
-    x = _sample(x_src, motion.fps, grid_times)
     r_times = np.arange(int(math.floor(reference.duration * A + 1e-9)) + 1) / A
-    z = _sample(z_src, reference.fps, r_times)
+    x_width = max(1, int(round(prefilter * motion.fps)))
+    if self_ref:  # one low-pass and spline gives both
+        x, z = _analysis_samples(x_src, motion.fps, x_width, [grid_times, r_times])
+    else:
+        x, = _analysis_samples(x_src, motion.fps, x_width, [grid_times])
+        z, = _analysis_samples(z_src, reference.fps, max(1, int(round(prefilter * reference.fps))), [r_times])
+    del x_src, z_src  # the clip-rate poses: the biggest arrays so far
     if z.shape[0] < 3:
         raise RetimeError(f"the reference is {reference.duration:.3g} s long: at {A:g} Hz that is "
                           f"{z.shape[0]} frame(s), and the local score needs at least 3")

@@ -111,15 +111,32 @@ def compact_columns(x: np.ndarray, z: np.ndarray | None = None):
     keep = np.ptp(both, axis=0) > 0 if both.shape[0] > 1 else np.ones(both.shape[1], dtype=bool)
     if not keep.any():
         keep[:] = True
-    cols = both[:, keep]
-    _, first, counts = np.unique(cols, axis=1, return_index=True, return_counts=True)
-    order = np.argsort(first)
-    first, counts = first[order], counts[order]
-    scale = np.sqrt(counts.astype(np.float64))
-    out = np.ascontiguousarray(cols[:, first] * scale)
+    first, counts = identical_columns(both, np.flatnonzero(keep))
+    out = both[:, first]
+    out *= np.sqrt(counts.astype(np.float64))
     if same:
         return out, out
     return np.ascontiguousarray(out[: x.shape[0]]), np.ascontiguousarray(out[x.shape[0]:])
+
+
+def identical_columns(values: np.ndarray, columns) -> tuple[np.ndarray, np.ndarray]:
+    """Groups of equal columns among ``columns`` of ``values`` (n, D): (first column of each group,
+    group sizes), groups in the order of their first column. What ``np.unique(values[:, columns],
+    axis=1, return_index=True, return_counts=True)`` finds (float equality: -0.0 == 0.0), without
+    its sorted copies of the whole array: one column at a time, grouped by a hash of its values."""
+    buckets: dict[int, list[list[int]]] = {}  # hash -> groups with that hash
+    groups: list[list[int]] = []
+    for c in columns:
+        col = values[:, c]
+        bucket = buckets.setdefault(hash((col + 0.0).tobytes()), [])  # + 0.0 turns -0.0 into 0.0
+        for group in bucket:
+            if np.array_equal(values[:, group[0]], col):
+                group.append(int(c))
+                break
+        else:
+            bucket.append([int(c)])
+            groups.append(bucket[-1])
+    return (np.array([g[0] for g in groups], dtype=np.int64), np.array([len(g) for g in groups], dtype=np.int64))
 
 
 def reference_features(z: np.ndarray, coeffs: tuple[float, float, float], stride: int = 1) -> np.ndarray:
