@@ -41,6 +41,7 @@ N lambda_ref``; the limit of each joint axis is ``torque_margin * max_i |tau_ref
 """
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -110,6 +111,7 @@ class PathDynamics:
         return tau
 
 
+_CACHE_LOCK = threading.Lock()
 CHUNK_SAMPLES = 2048  # samples per pass of kinematics and wrenches: their arrays (10 KB a sample) stay small
 
 
@@ -232,8 +234,10 @@ class DynamicsTerms:
         """(abc, N, b_noise) for gravity g, mass factors f and friction mu, cached: physics asks for
         the standard parameters and its own, the editor a few settings in turn."""
         key = (tuple(g), tuple(f), mu)
-        cache = self.__dict__.setdefault("_combined", {})
-        if key not in cache:
+        with _CACHE_LOCK:  # the editor's threads share one motion's terms
+            cache = self.__dict__.setdefault("_combined", {})
+            found = cache.get(key)
+        if found is None:
             coef = np.zeros((3, 5))
             coef[0, 0] = coef[1, 1] = 1.0
             coef[2, 2:] = g
@@ -242,10 +246,12 @@ class DynamicsTerms:
             b_noise = None
             if self.noise_band and self.noise_band > self.smoothing and self.tree.n_root:
                 b_noise = self._noise(abc, self._wide_b(f), f)
-            while len(cache) >= 2:  # the standard parameters and the latest others
-                cache.pop(next(iter(cache)))
-            cache[key] = (abc, N, b_noise)
-        return cache[key]
+            found = (abc, N, b_noise)
+            with _CACHE_LOCK:
+                while len(cache) >= 2:  # the standard parameters and the latest others
+                    cache.pop(next(iter(cache)))
+                cache[key] = found
+        return found
 
     def combine(self, gravity=STANDARD_GRAVITY, mass_factors=None, friction=None, torque_scale=1.0,
                 with_reference=True) -> PathDynamics:
