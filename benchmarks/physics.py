@@ -98,7 +98,7 @@ def run_case(case, repeat):
     opts = RegionOptions(body_weight=(pd.total_mass or 1.0) * 9.81)
     compute_regions(pd, opts, frames=np.arange(min(5, len(pd.times))))
     rs, t_feas, c_feas = _best(lambda: compute_regions(pd, opts), repeat)
-    target = np.asarray(pd.b) + np.asarray(pd.c) - np.einsum("nvk,nk->nv", np.asarray(pd.N), rs.lam0)
+    target = np.asarray(pd.b) + np.asarray(pd.c) - pd.N.forces(rs.lam0)
     bake = lambda: O.bake(pd, rs, target, alpha=10.0, beta=0.1, gamma=0.03, penalty="l1",  # noqa: E731
                           metric="residual", v_range=(0.02 ** 2, 25.0))
     obj, t_bake, c_bake = _best(bake, repeat)
@@ -118,7 +118,7 @@ def run_case(case, repeat):
         t = make_terms()
         p = t.combine()
         r = compute_regions(p, opts)
-        tg = np.asarray(p.b) + np.asarray(p.c) - np.einsum("nvk,nk->nv", np.asarray(p.N), r.lam0)
+        tg = np.asarray(p.b) + np.asarray(p.c) - p.N.forces(r.lam0)
         o = O.bake(p, r, tg, alpha=10.0, beta=0.1)
         return O.evaluate(o, sp)
 
