@@ -30,6 +30,7 @@ queried with relative error ``eps`` (each returned distance is at most
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
@@ -395,18 +396,30 @@ def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_st
         P_[:, R:] = 0.0
     zzp = np.full(Rp, INF)
     zzp[:R] = zz
+    blocks = []
     j0 = 0
     while j0 < n:
         j1 = min(n, j0 + step)
-        t0, t1 = max(0, j0 - s), min(n, j1 + s)
-        nt = t1 - t0
-        with single_threaded_blas():
-            np.matmul(xc[t0:t1], zt, out=G[:nt])
-        _projections(G[:nt], st, a2, b2, c2, PI, PJ, PK)
-        # small dynamic chunks: a thread that the OS preempts does not hold up the other
-        with numba.parallel_chunksize(max(1, (j1 - j0) // (16 * numba.get_num_threads()))):
-            kernel(PI, PJ, PK, zzp, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out)
+        blocks.append((j0, j1, max(0, j0 - s), min(n, j1 + s)))
         j0 = j1
+
+    def product(b):  # G = X Z^T of block b's frames (BLAS releases the GIL)
+        t0, t1 = blocks[b][2:]
+        np.matmul(xc[t0:t1], zt, out=G[:t1 - t0])
+
+    with single_threaded_blas(), ThreadPoolExecutor(max_workers=1) as pool:
+        # the next block's matrix product (one BLAS thread) runs while the kNN kernel scans this
+        # block; G is free again once its projections are taken. Blocks and products are the
+        # same as one after the other, so every bit is.
+        pending = pool.submit(product, 0)
+        for b, (j0, j1, t0, t1) in enumerate(blocks):
+            pending.result()
+            _projections(G[:t1 - t0], st, a2, b2, c2, PI, PJ, PK)
+            if b + 1 < len(blocks):
+                pending = pool.submit(product, b + 1)
+            # small dynamic chunks: a thread that the OS preempts does not hold up the other
+            with numba.parallel_chunksize(max(1, (j1 - j0) // (16 * numba.get_num_threads()))):
+                kernel(PI, PJ, PK, zzp, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out)
     return out
 
 
