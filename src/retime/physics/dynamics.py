@@ -87,7 +87,6 @@ class PathDynamics:
     tau_ref: np.ndarray | None = None  # (n, nv) torques of the original timing (original physics)
     lambda_ref: np.ndarray | None = None  # (n, K) the contact forces behind tau_ref
     corners: np.ndarray | None = None  # (n, 8, 3) world positions of the sole corners
-    sole_path: tuple | None = None  # (root (n, 3), rotations (n, nb, 4)) of the smoothed path, for N
     b_noise: np.ndarray | None = None  # (n, nv) capture-noise band of b on the root rows in stance (see combine)
 
     def __post_init__(self):
@@ -178,9 +177,9 @@ class DynamicsTerms:
         return path_samples(self.fps, self.root_pos, self.rotations, shape.jtype, shape.vidx, shape.nv,
                             times=self.times, smoothing=smoothing)
 
-    def chunks(self, n=None):
-        """Slices of :data:`CHUNK_SAMPLES` samples covering ``n`` (default: all samples)."""
-        n = len(self.times) if n is None else n
+    def chunks(self):
+        """Slices of :data:`CHUNK_SAMPLES` samples covering all samples."""
+        n = len(self.times)
         return [slice(k, min(n, k + CHUNK_SAMPLES)) for k in range(0, n, CHUNK_SAMPLES)]
 
     def kinematics(self, path: PathSamples, part: slice):
@@ -465,7 +464,7 @@ def bind_pose_frames(motion, rest_deg=2.0, max_seconds=0.25) -> int:
 
 
 # peak memory of a physics retiming per source frame and joint, with a margin: a 10-minute capture at
-# 120 Hz (72,001 frames, 31 joints) peaks 1.44 GB above its start (benchmarks/scaling.py), 650 bytes
+# 120 Hz (72,001 frames, 31 joints) peaks 1.32 GB above its start (benchmarks/scaling.py), 590 bytes
 BYTES_PER_FRAME_JOINT = 1_000
 
 
