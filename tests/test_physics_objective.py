@@ -188,3 +188,28 @@ def test_bake_reads_the_actuated_rows_in_place_exactly_as_from_a_copy(setup):
                    np.ascontiguousarray(rs.lam), np.ascontiguousarray(rs.center_lam), obj.arrays.mode, 0.7 / obj.tau_scale ** 2, wc)
     assert act.sum() < act.size  # the root rows are left out, so the rows really are a subset
     assert np.array_equal(wc, obj.arrays.wc)
+
+
+def test_long_clip_objective_does_not_depend_on_the_thread_count(setup, monkeypatch):
+    """Clips from PARALLEL_MIN_SAMPLES samples sum the objective in PARALLEL_CHUNKS fixed chunks: the
+    same value and gradient, bit for bit, on one thread as on two (one chunk per thread made a long
+    clip's answer depend on the machine), and the same as one pass up to rounding."""
+    import numba
+
+    pd, rs, target = setup
+    obj = O.bake(pd, rs, target, alpha=1.0, beta=0.7)
+    S = float(pd.times[-1])
+    sp = _wiggly_spline(S, 0.8 * S, seed=1)
+    one_pass = O.evaluate(obj, sp, grad=True)
+    monkeypatch.setattr(O, "PARALLEL_MIN_SAMPLES", 0)
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        single = O.evaluate(obj, sp, grad=True)
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        double = O.evaluate(obj, sp, grad=True)
+    finally:
+        numba.set_num_threads(threads)
+    assert single[0] == double[0] and np.array_equal(single[1], double[1])
+    assert single[0] == pytest.approx(one_pass[0], rel=1e-12)
+    assert np.allclose(single[1], one_pass[1], rtol=1e-10, atol=1e-12 * np.abs(one_pass[1]).max())

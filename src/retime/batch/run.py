@@ -59,8 +59,14 @@ def _error_line(stderr: str, returncode) -> str:
 def run_clip(argv: list[str]) -> dict:
     """One clip, on a worker: ``retime.cli.main(argv)`` with its output captured. Never raises for
     the clip's own failures; those come back as {'status': 'failed', 'error': one line}."""
+    import numba
+
     from ..cli import main
 
+    # clips run side by side, a worker per core: numba's parallel kernels (guided's scores, long physics
+    # clips' objective) would put two threads on each core, and a busy core stalls each parallel call
+    # (6x on this machine); their results do not depend on the thread count. Thread-local, so per task.
+    numba.set_num_threads(1)
     start = time.perf_counter()
     out, err = io.StringIO(), io.StringIO()
     try:
