@@ -13,6 +13,8 @@ from types import SimpleNamespace
 import numpy as np
 from scipy.optimize import nnls
 
+from retime.physics.contact_basis import ContactBasis
+
 G = 9.81
 
 
@@ -127,7 +129,8 @@ def rigid_jump(gravity=(0.0, -G, 0.0), mass=70.0, fps=120.0, mu=0.5, vy0=2.0, vx
             N[i, 7] = 0.4 * J[0]
     tau_lo = np.zeros(nv)
     tau_hi = np.zeros(nv)
-    pd = SimpleNamespace(times=s, a=a, b=b, c=c, N=N, contact=contact[:, None], tau_lo=tau_lo, tau_hi=tau_hi)
+    pd = SimpleNamespace(times=s, a=a, b=b, c=c, N=ContactBasis.from_dense(N), contact=contact[:, None],
+                         tau_lo=tau_lo, tau_hi=tau_hi)
     if limits is None:
         tau0 = original_torques_nnls(pd)
         peak = np.max(np.abs(tau0[:, 6:]), axis=0)
@@ -170,7 +173,8 @@ def free_fall(g_source=G, g_new=G, mass=60.0, fps=120.0, n=40, vel=(1.0, 2.0, 0.
         rng = np.random.default_rng(seed)
         b[:, 3:] = noise * mass * rng.normal(size=(n, 3))
         b[:, :3] += 0.2 * noise * mass * rng.normal(size=(n, 3))
-    return SimpleNamespace(times=s, a=a, b=b, c=c, N=np.zeros((n, nv, 16)), contact=np.zeros((n, 1), bool),
+    return SimpleNamespace(times=s, a=a, b=b, c=c, N=ContactBasis.from_dense(np.zeros((n, nv, 16))),
+                           contact=np.zeros((n, 1), bool),
                            tau_lo=np.zeros(nv), tau_hi=np.zeros(nv), mass=mass, gravity=np.array([0.0, -g_new, 0.0]),
                            vel=v0)
 

@@ -221,7 +221,7 @@ def test_analysis_samples_in_column_chunks_are_the_same(jump):
     spline = CubicSpline(np.arange(jump.n_frames) / jump.fps, lowpass(poses, 12), axis=0)
     whole = [spline(np.clip(t, 0.0, (jump.n_frames - 1) / jump.fps)) for t in (grid, rate)]
     for chunk in (1, 3, 8, poses.shape[1]):
-        got = _analysis_samples(poses, jump.fps, 12, [grid, rate], chunk_columns=chunk)
+        got = _analysis_samples(poses, jump.fps, 0.1, [grid, rate], chunk_columns=chunk)  # 12 frames at 120 Hz
         assert [g.tobytes() for g in got] == [w.tobytes() for w in whole]
 
 

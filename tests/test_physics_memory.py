@@ -113,3 +113,13 @@ def test_memory_per_sample_is_bounded(walk):
     bound = 8 * (5 * nv + 32 + 24 + 3 + 3 + 3 + 1 + 3 + 4 * nb) + 4
     assert per_sample <= bound, (per_sample, bound)
     assert isinstance(d.N, ComputedContactBasis) and d.N.values.shape[1] < nv / 2  # legs' and root's rows
+
+
+def test_computed_basis_pickles_without_its_chunks(terms):
+    """A computed basis travels (a result sent between processes) without its kept chunks or lock,
+    and makes the same values on the other side."""
+    import pickle
+
+    N = terms.combine().N
+    again = pickle.loads(pickle.dumps(N))
+    assert again._kept == {} and np.array_equal(again[17], N[17]) and np.array_equal(again.values, N.values)

@@ -139,9 +139,11 @@ def _sampler(poses, fps):
     return lambda times: spline(np.clip(times, 0.0, (F - 1) / fps))
 
 
-def _analysis_samples(poses, fps, width, times, chunk_columns=SPLINE_CHUNK_COLUMNS):
-    """Poses (F, D) at ``fps``, low-passed over ``width`` frames, at each array of ``times`` (s):
-    a list of (len(t), D) arrays. A few columns at a time, each low-passed and splined once."""
+def _analysis_samples(poses, fps, prefilter, times, chunk_columns=SPLINE_CHUNK_COLUMNS):
+    """Poses (F, D) at ``fps``, low-passed with a box of ``prefilter`` seconds, at each array of
+    ``times`` (s): a list of (len(t), D) arrays. A few columns at a time, each low-passed and
+    splined once."""
+    width = max(1, int(round(prefilter * fps)))
     out = [np.empty((len(t), poses.shape[1])) for t in times]
     for c0 in range(0, poses.shape[1], int(chunk_columns)):
         c1 = min(poses.shape[1], c0 + int(chunk_columns))
@@ -158,8 +160,7 @@ def analysis_poses(motion: Motion, fps: float = 30.0, prefilter: float = 0.1, ti
     x = x.reshape(x.shape[0], -1)
     if times is None:
         times = np.arange(int(math.floor(motion.duration * fps + 1e-9)) + 1) / fps
-    width = max(1, int(round(prefilter * motion.fps)))
-    return _analysis_samples(x, motion.fps, width, [np.asarray(times, dtype=float)])[0]
+    return _analysis_samples(x, motion.fps, prefilter, [np.asarray(times, dtype=float)])[0]
 
 
 def _segments(S, T, keytimes, A):
@@ -296,12 +297,11 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
     grid_times = np.concatenate(grid)
     n = grid_times.size
     r_times = np.arange(int(math.floor(reference.duration * A + 1e-9)) + 1) / A
-    x_width = max(1, int(round(prefilter * motion.fps)))
     if self_ref:  # one low-pass and spline gives both
-        x, z = _analysis_samples(x_src, motion.fps, x_width, [grid_times, r_times])
+        x, z = _analysis_samples(x_src, motion.fps, prefilter, [grid_times, r_times])
     else:
-        x, = _analysis_samples(x_src, motion.fps, x_width, [grid_times])
-        z, = _analysis_samples(z_src, reference.fps, max(1, int(round(prefilter * reference.fps))), [r_times])
+        x, = _analysis_samples(x_src, motion.fps, prefilter, [grid_times])
+        z, = _analysis_samples(z_src, reference.fps, prefilter, [r_times])
     del x_src, z_src  # the clip-rate poses: the biggest arrays so far
     if z.shape[0] < 3:
         raise RetimeError(f"the reference is {reference.duration:.3g} s long: at {A:g} Hz that is "

@@ -50,9 +50,6 @@ class ContactBasis:
     def shape(self) -> tuple[int, int, int]:
         return self.n_samples, self.nv, self.n_columns
 
-    def __len__(self) -> int:
-        return self.n_samples
-
     def chunk(self, k: int) -> np.ndarray:
         """The values (m, R, K) of samples k * CHUNK to (k + 1) * CHUNK."""
         return self.values[k * CHUNK:(k + 1) * CHUNK]

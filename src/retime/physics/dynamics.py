@@ -135,7 +135,7 @@ class DynamicsTerms:
     shape: TreeModel | None = None  # the kinematic tree of the path (None: ``tree``)
     skeleton: object = None  # for the sole corners (None: no contacts)
     smoothing: float = DEFAULT_SMOOTHING
-    noise_band: float | None = None  # seconds (see dynamics_terms; None: no capture-noise band)
+    noise_band: float | None = None  # seconds (see dynamics_terms; None, or not above smoothing: no band)
     corner_rows: np.ndarray | None = None  # (R,) velocity rows a sole corner's force shows up on
     corners: np.ndarray | None = None  # (n, 8, 3) world positions of the sole corners
     sole_path: tuple | None = None  # (root (n, 3), rotations (n, nb, 4)) of the smoothed path, for N
@@ -171,9 +171,14 @@ class DynamicsTerms:
             return out
         return np.asarray(mass_factors, dtype=float)
 
+    @property
+    def kinematic_tree(self) -> TreeModel:
+        """The tree the path moves (the skeleton's; a fixed-base chain's own tree)."""
+        return self.shape or self.tree
+
     def path(self, smoothing) -> PathSamples:
         """The path sampled at ``times``, low-passed at ``smoothing`` seconds."""
-        shape = self.shape or self.tree
+        shape = self.kinematic_tree
         return path_samples(self.fps, self.root_pos, self.rotations, shape.jtype, shape.vidx, shape.nv,
                             times=self.times, smoothing=smoothing)
 
@@ -183,7 +188,7 @@ class DynamicsTerms:
         return [slice(k, min(n, k + CHUNK_SAMPLES)) for k in range(0, n, CHUNK_SAMPLES)]
 
     def kinematics(self, path: PathSamples, part: slice):
-        return kinematics(self.shape or self.tree, path.root_pos[part], path.quats[part], path.qd[part],
+        return kinematics(self.kinematic_tree, path.root_pos[part], path.quats[part], path.qd[part],
                           path.qdd[part])
 
     def _generalized(self, f, coef):
@@ -513,7 +518,7 @@ def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smooth
     del frames
     terms = DynamicsTerms(tree=tree, body=body, times=times, fps=motion.fps, samples_per_frame=spf,
                           rotations=rotations, contact=contact, root_pos=root_pos, shape=shape, skeleton=sk,
-                          smoothing=smoothing, noise_band=noise_band if noise_band and noise_band > smoothing else None,
+                          smoothing=smoothing, noise_band=noise_band,
                           corner_rows=corner_rows(tree, body, sk),
                           friction=body.friction, bind_pose_frames=held, conform_notes=conf.notes())
     terms.corners, terms.root_origin, terms.com = body_points(terms, path)
@@ -536,9 +541,8 @@ class SoleBasis:
     def __call__(self, part: slice) -> np.ndarray:
         t = self.terms
         root, quats = t.sole_path
-        shape = t.shape or t.tree
-        still = np.zeros((len(quats[part]), shape.nv))  # world frames do not depend on the velocities
-        kin = kinematics(shape, root[part], quats[part], still, still)
+        still = np.zeros((len(quats[part]), t.kinematic_tree.nv))  # world frames do not depend on velocities
+        kin = kinematics(t.kinematic_tree, root[part], quats[part], still, still)
         _, jt = corner_jacobians(t.tree, t.body, t.skeleton, kin.R, kin.o)
         return compact_contact_basis(jt, self.edges, t.contact[part])
 

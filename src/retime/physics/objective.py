@@ -46,7 +46,6 @@ import numpy as np
 from numba import njit, prange
 
 from ..errors import RetimeError
-from .contact_basis import as_contact_basis
 from .polygon import boundary_closest, edge_projection
 
 OBJECTIVES = ("match", "minimize")
@@ -188,7 +187,7 @@ def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_f
     act = np.flatnonzero(actuated_mask(pd)).astype(np.int64)
     # read in place on the actuated rows: copies of them were 0.2 GB of a 10-minute capture's peak
     a, b, c, tgt = (np.asarray(x, dtype=float) for x in (pd.a, pd.b, pd.c, target))
-    basis = as_contact_basis(pd.N)  # read on its own rows: no dense (n, nv, K) copy
+    basis = pd.N  # a ContactBasis, read on its own rows: no dense (n, nv, K) copy
     rows = basis.row_index()[act]  # each actuated row's place in basis.values (-1: always zero)
     if tau_scale is None:
         tau_scale = float(np.sqrt(np.mean(np.sum(tgt[:, act] ** 2, axis=1)))) or 1.0
@@ -790,7 +789,7 @@ def unbaked(pd, regions, target, obj: BakedObjective) -> UnbakedObjective:
             lam_aff[p0 + k] = (L0, Lu, Lv)
     arr = lambda x: np.ascontiguousarray(np.asarray(x, dtype=float)[:, act])  # noqa: E731
     return UnbakedObjective(obj, arr(pd.a), arr(pd.b), arr(pd.c), arr(target),
-                            as_contact_basis(pd.N).rows_dense(np.flatnonzero(act)), lam_aff,
+                            pd.N.rows_dense(np.flatnonzero(act)), lam_aff,
                             obj.beta / obj.tau_scale ** 2)
 
 

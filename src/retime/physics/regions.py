@@ -224,9 +224,9 @@ class RegionJob:
         ref_bounds = None if reference is None else base_bounds(reference, opts, body_weight, n_root)
         return cls(pd, reference, opts, body_weight, n_root, base_bounds(pd, opts, body_weight, n_root), ref_bounds)
 
-    def solve(self, frames, cancel=None, step=None) -> list[FrameRegion]:
-        """The regions of ``frames`` (one chunk) with fresh HiGHS objects. ``cancel`` is asked before
-        each frame; ``step`` is called after each."""
+    def solve(self, frames, cancel=None, step=None) -> dict:
+        """The regions of ``frames`` (one chunk) with fresh HiGHS objects, packed (:func:`_pack`).
+        ``cancel`` is asked before each frame; ``step`` is called after each."""
         pool = HighsPool()
         out = []
         for i in frames:
@@ -235,7 +235,7 @@ class RegionJob:
             out.append(self.frame(int(i), pool))
             if step is not None:
                 step()
-        return out
+        return _pack(out, self.pd.N.shape[2])
 
     def frame(self, i, pool: HighsPool) -> FrameRegion:
         pd, ref, opts, bw, n_root = self.pd, self.reference, self.opts, self.body_weight, self.n_root
@@ -285,7 +285,7 @@ def _start_worker(job):
 
 
 def _solve_in_worker(frames):
-    return _pack(_WORKER_JOB.solve(frames), _WORKER_JOB.pd.N.shape[2])
+    return _WORKER_JOB.solve(frames)
 
 
 def _solve_forked(job, chunks, workers):
@@ -341,8 +341,7 @@ def compute_regions(pd, options: RegionOptions | None = None, reference=None, fr
             bar = tqdm(total=n, desc="feasible regions", unit="frame", disable=None)
         results = []
         for chunk in chunks:
-            results.append(_pack(job.solve(chunk, cancel, None if bar is None else lambda: bar.update(1)),
-                                 pd.N.shape[2]))
+            results.append(job.solve(chunk, cancel, None if bar is None else lambda: bar.update(1)))
         if bar is not None:
             bar.close()
     rs = _region_set(pd, idx, results, opts, bw)
