@@ -199,3 +199,15 @@ def test_polygon_geometry_helpers():
     assert np.allclose(q, [2.0, 1.0]) and d == pytest.approx(math.sqrt(2))
     q, d = closest_point(P[:2], (1.0, 1.0))  # a segment
     assert np.allclose(q, [1.0, 0.0]) and d == pytest.approx(1.0)
+
+
+def test_regions_of_a_fixed_base_chain_have_no_contact_columns():
+    """A fixed-base chain (the Fig. 12 benchmark's) has K = 0: its regions pack and join into
+    (P, 0) contact forces, in one chunk and in several (CHUNKED_FRAMES and more frames)."""
+    from chain import chain_terms
+
+    pd = chain_terms(3, n_frames=130).combine()
+    for frames in (np.arange(5), None):
+        rs = R.compute_regions(pd, R.RegionOptions(workers=1, body_weight=30.0), frames=frames)
+        n = 5 if frames is not None else len(pd.times)
+        assert rs.lam.shape == (rs.offsets[-1], 0) and len(rs.offsets) == n + 1 and rs.lam0.shape == (n, 0)

@@ -354,10 +354,12 @@ def _pack(results: list[FrameRegion], K: int) -> dict:
     pickles nor the parent hold tens of thousands of small arrays (their freed memory stayed in the
     heap: 0.4 GB of a 10-minute capture's peak)."""
     n = len(results)
+    n_verts = np.array([len(r.verts) for r in results], dtype=np.int64)
+    P = int(n_verts.sum())  # explicit: a fixed-base chain has K = 0 contact columns
     return dict(
-        n_verts=np.array([len(r.verts) for r in results], dtype=np.int64),
-        verts=np.concatenate([r.verts for r in results]).reshape(-1, 2) if n else np.zeros((0, 2)),
-        lam=np.concatenate([r.lam for r in results]).reshape(-1, K) if n else np.zeros((0, K)),
+        n_verts=n_verts,
+        verts=np.concatenate([r.verts for r in results]).reshape(P, 2) if n else np.zeros((0, 2)),
+        lam=np.concatenate([r.lam for r in results]).reshape(P, K) if n else np.zeros((0, K)),
         center=np.array([r.center for r in results]).reshape(n, 2),
         center_lam=np.array([r.center_lam for r in results]).reshape(n, K),
         lo=np.array([r.lo for r in results]),
