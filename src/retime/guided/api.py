@@ -33,8 +33,12 @@ from retime.guided.features import FeatureWeights, compact_columns, lowpass, pos
 from retime.guided.heuristic import solve_heuristic, solve_upper_bound
 from retime.guided.postprocess import moving_average
 from retime.guided.problem import SolveStats, WarpProblem, solve_exact
+from retime.guided.steady import steady_warp
 from retime.motion import Motion, forward_kinematics
-from retime.warp import TimingCurve, check_keytimes, scale_warp, snap_duration
+from retime.warp import TimingCurve, check_keytimes, keytime_warp, scale_warp, snap_duration
+
+#: local scores: "steady" (squared distances, sub-frame steps) and "paper" (Hsu et al. eq. 2)
+SCORES = ("steady", "paper")
 
 #: above this many DP states the exact solver first runs the heuristic for an upper bound and
 #: prunes the band with Lagrangian bounds (exact either way)
@@ -222,7 +226,8 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
                  scale: float | None = None, free: bool = False, keytimes=(), max_skip: int = 8,
                  neighbors: int = 3, fast: bool = False, analysis_fps: float = 30.0,
                  weights: FeatureWeights | None = None, prefilter: float = 0.1, upsample: int | None = None,
-                 smoothing: int = 5, knn: str = "exact", eps: float = 0.0, quiet: bool = True) -> GuidedResult:
+                 smoothing: int = 5, knn: str = "exact", eps: float = 0.0, quiet: bool = True,
+                 score: str | None = None, steadiness: float | None = None, blend: float | None = None) -> GuidedResult:
     """Guided time warp of ``motion``; returns a :class:`GuidedResult` (``.curve`` is the timing curve).
 
     motion: the input. reference: the motion whose timing to imitate (default: ``motion`` itself,
@@ -242,8 +247,25 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
     reference, enough for at least 2 per output frame otherwise, 4 for ``free`` with a reference).
     smoothing: moving-average window of the warp, in output frames at the analysis rate (1 = none).
     knn: "exact" or "approx" (KD-tree with relative error ``eps``).
+    score: "steady" (squared distances and sub-frame steps, :mod:`retime.guided.steady`: a steady
+    motion plays at a steady speed) or "paper" (the paper's mean distances on whole grid frames).
+    steadiness: weight of the steady objective's speed-change penalty.
+    blend: the reference's influence, 0 (the keytime spline warp,
+    :func:`retime.warp.keytime_warp` with ``smooth``) to 1 (the guided warp); in between the
+    source times are mixed linearly. None for any of these: :class:`retime.guided.method.Settings`.
     """
     t_start = time.perf_counter()
+    from retime.guided.method import Settings
+
+    score = Settings.score if score is None else str(score)
+    steadiness = Settings.steadiness if steadiness is None else float(steadiness)
+    blend = Settings.blend if blend is None else float(blend)
+    if score not in SCORES:
+        raise RetimeError(f"unknown score {score!r}: use one of {', '.join(SCORES)}")
+    if not 0.0 <= blend <= 1.0:
+        raise RetimeError(f"--blend must be between 0 and 1, got {blend:g}")
+    if not (steadiness >= 0 and math.isfinite(steadiness)):
+        raise RetimeError(f"the steadiness must be a finite number >= 0, got {steadiness:g}")
     if motion.n_frames < 2:
         raise RetimeError("a single frame has no timing to change")
     s = int(max_skip)
@@ -307,7 +329,7 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
         raise RetimeError(f"the reference is {reference.duration:.3g} s long: at {A:g} Hz that is "
                           f"{z.shape[0]} frame(s), and the local score needs at least 3")
     m = None if free else pos[-1] + 1
-    problem = WarpProblem(x, z, A, m, fixed, s, int(neighbors), weights, knn, float(eps))
+    problem = WarpProblem(x, z, A, m, fixed, s, int(neighbors), weights, knn, float(eps), squared=score == "steady")
     stats = SolveStats()
     progress = _Progress(quiet)
     if free:
@@ -340,7 +362,17 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
     progress.close()
 
     frames = sol.frames
-    src_t = grid_times[frames]
+    objective = float(sol.objective)
+    if score == "steady":
+        t0 = time.perf_counter()
+        steady_fixed = [] if free else list(fixed) + [0, len(frames) - 1]
+        warp = steady_warp(F, frames, steady_fixed, steadiness)
+        stats.optimization_s += time.perf_counter() - t0
+        stats.extra["discrete_objective"] = objective
+        objective = warp.objective
+        src_t = np.interp(warp.frames, np.arange(n), grid_times)
+    else:
+        src_t = grid_times[frames]
     if free:
         out_t = np.arange(len(frames)) / A
         fixed_out = []
@@ -354,9 +386,24 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
     smooth_t = np.maximum.accumulate(np.clip(smooth_t, 0.0, S))
     curve = TimingCurve(out_t, smooth_t, kind="pchip")
     raw = TimingCurve(out_t, src_t, kind="linear")
+    if blend < 1.0:
+        spline = keytime_warp(S, keys, curve.duration, smooth=True)
+        curve = blended(spline, curve, blend, motion.fps)
     stats.extra["total_s"] = time.perf_counter() - t_start
-    return GuidedResult(curve, raw, float(sol.objective), exact, frames, out_t, src_t, n, len(frames),
+    return GuidedResult(curve, raw, objective, exact, frames, out_t, src_t, n, len(frames),
                         z.shape[0], s, int(neighbors), A, ups, stats)
+
+
+def blended(spline: TimingCurve, guided: TimingCurve, weight: float, fps: float) -> TimingCurve:
+    """(1 - weight) spline + weight guided, exact at the frames of ``fps`` (Hsu et al. sec. 5: a
+    control of the reference's influence). Weight 0 is ``spline`` itself, 1 is ``guided``; either
+    curve is monotone, so their mix is, and a phase's speed moves linearly with the weight."""
+    if weight <= 0.0:
+        return spline
+    if weight >= 1.0:
+        return guided
+    t = np.union1d(guided.frame_times(fps), [guided.duration])
+    return TimingCurve(t, (1.0 - weight) * spline(t) + weight * guided(t), kind="pchip")
 
 
 def guided_warp(motion: Motion, reference: Motion | None = None, duration: float | None = None,

@@ -29,6 +29,9 @@ class Settings:
     knn: str = "exact"  # or "approx" (KD-tree with relative error eps)
     eps: float = 0.0
     progress: bool = False  # stage messages and the compile notice on stderr
+    score: str = "steady"  # or "paper": the paper's mean distances on whole grid frames
+    steadiness: float = 3.0  # weight of the steady score's speed-change penalty
+    blend: float = 1.0  # the reference's influence: 0 = the keytime spline warp, 1 = the guided warp
 
 
 def solve(motion, request: Request) -> Result:
@@ -40,7 +43,8 @@ def solve(motion, request: Request) -> Result:
         result = guided_solve(motion, s.reference, duration=request.duration, scale=request.scale, free=s.free,
                               keytimes=request.keytimes, max_skip=s.max_skip, neighbors=s.neighbors, fast=s.fast,
                               analysis_fps=s.analysis_fps, weights=s.weights, prefilter=s.prefilter,
-                              upsample=s.upsample, smoothing=s.smoothing, knn=s.knn, eps=s.eps, quiet=not s.progress)
+                              upsample=s.upsample, smoothing=s.smoothing, knn=s.knn, eps=s.eps, quiet=not s.progress,
+                              score=s.score, steadiness=s.steadiness, blend=s.blend)
     total = time.perf_counter() - t0
     stats = result.stats
     timings = {"scores": stats.objective_s, "search": stats.optimization_s,
