@@ -7,7 +7,10 @@ from ..errors import RetimeError
 from ..method import Request, solve
 from ..motion import load_motion
 from ..warp import apply_timing
-from .common import check_found_inputs, frame_kwargs, add_duration_args, add_motion_args, add_output_args, check_output, load_input, nonnegative_float, positive_float, positive_int, write_outputs
+from .common import _number_type, check_found_inputs, frame_kwargs, add_duration_args, add_motion_args, add_output_args, check_output, load_input, nonnegative_float, positive_float, positive_int, write_outputs
+
+
+unit_float = _number_type(float, lambda v: 0 <= v <= 1, "a number from 0 to 1")
 
 
 def register(sub):
@@ -49,6 +52,15 @@ def register(sub):
                    help="average each output frame over the source time it covers (window = local compression)")
     p.add_argument("--approx", type=nonnegative_float, metavar="EPS",
                    help="approximate nearest neighbours (KD-tree) with relative error EPS, for long references")
+    p.add_argument("--score", choices=("steady", "paper"),
+                   help="local score: steady (default; squared distances and sub-frame steps, so a steady motion "
+                        "plays at a steady speed) or paper (Hsu et al.'s eq. 2 on whole grid frames)")
+    p.add_argument("--steadiness", type=nonnegative_float, metavar="L",
+                   help="steady score: weight of the speed-change penalty (default 3; lower keeps short "
+                        "flights at their speed, higher plays more evenly)")
+    p.add_argument("--blend", type=unit_float, metavar="W",
+                   help="the reference's influence from 0 (the keytime spline warp, as linear --smooth) to 1 "
+                        "(the guided warp; default)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=run)
 
@@ -84,7 +96,9 @@ def run(args):
                         neighbors=args.neighbors, fast=args.fast, analysis_fps=args.analysis_fps, weights=args.weights,
                         upsample=args.upsample, smoothing=args.smoothing,
                         knn="approx" if args.approx is not None else "exact", eps=args.approx or 0.0,
-                        progress=not args.quiet)
+                        progress=not args.quiet,
+                        **{k: v for k, v in (("score", args.score), ("steadiness", args.steadiness),
+                                             ("blend", args.blend)) if v is not None})
     answer = solve("guided", motion, Request(args.duration, args.scale, args.keytime, settings))
     result = answer.detail
     curve = result.curve

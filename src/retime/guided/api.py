@@ -366,7 +366,8 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
     if score == "steady":
         t0 = time.perf_counter()
         steady_fixed = [] if free else list(fixed) + [0, len(frames) - 1]
-        warp = steady_warp(F, frames, steady_fixed, steadiness)
+        natural = ups[0] if free else np.append(np.repeat(ups, np.diff(pos)), ups[-1])  # grid frames at 1x
+        warp = steady_warp(F, frames, steady_fixed, steadiness, natural)
         stats.optimization_s += time.perf_counter() - t0
         stats.extra["discrete_objective"] = objective
         objective = warp.objective

@@ -6,9 +6,10 @@ of the grid; its score grows linearly with the speed error, so on a steady motio
 
 Here the warp is refined on a finer source grid, in the spirit of GDTW (Deriso & Boyd 2019).
 Each segment between fixed frames (the ends and keytimes), ``M`` output steps over ``N`` grid
-frames, gets a grid of ``FINE`` points per *mean step* ``N / M``: the uniform warp is one step of
-``FINE`` points at every output frame, exactly representable whatever the average speed, and a
-step of ``k`` points plays ``k / FINE`` times the segment's mean speed. The refined warp minimises::
+frames, gets a grid of ``L`` points per *mean step* ``N / M`` (``L`` from :data:`FINE`, chosen so
+that the original speed is as near a whole number of points as can be): the uniform warp is one
+step of ``L`` points at every output frame, exactly representable whatever the average speed, and
+a step of ``k`` points plays ``k / L`` times the segment's mean speed. The refined warp minimises::
 
     sum_p  c(t_p, v_p)  +  lam * sum_p rho(log v_p - log v_{p-1})
 
@@ -36,8 +37,9 @@ from numba import njit
 from retime.errors import RetimeError
 
 INF = np.inf
-#: fine grid points per mean step of a segment
-FINE = 8
+#: fine grid points per mean step of a segment: the count in this range that puts the natural
+#: speed nearest a whole number of points (10 makes both 1x and the mean exact at --scale 0.6 and 1.5)
+FINE = range(8, 13)
 #: at most this many (position, step) states per output frame in the full band; above, a corridor
 FULL_BAND_STATES = 4_000_000
 #: corridor half-width around the discrete warp, in grid frames
@@ -179,10 +181,20 @@ def _segment_dp(D, a0, h, lo, hi, kmin, kmax, lam):
     return q_out, best
 
 
-def _refine_segment(D, y, a0, a1, s, lam, fine, corridor):
+def points_per_step(N, M, natural, choices=FINE) -> int:
+    """Fine points per mean step (N grid frames / M steps) that put the natural speed (``natural``
+    grid frames per output frame) nearest a whole number of points (the smallest of equals)."""
+    def miss(L):
+        x = natural * M * L / N
+        return abs(x - round(x))
+    return min(choices, key=lambda L: (round(miss(L), 9), L))
+
+
+def _refine_segment(D, y, a0, a1, s, lam, natural, corridor):
     """The steady warp of one segment (grid frames a0 -> a1 over len(y) - 1 steps) near path y."""
     M = len(y) - 1
     N = a1 - a0
+    fine = points_per_step(N, M, natural)
     h = N / (M * fine)  # grid frames per fine point: FINE points per mean step
     kmin = max(1, math.ceil(1.0 / h - 1e-9))  # at least one grid frame per output frame, as the DP
     kmax = math.floor(s / h + 1e-9)
@@ -216,22 +228,24 @@ def _refine_segment(D, y, a0, a1, s, lam, fine, corridor):
         centre = q.astype(float)
 
 
-def steady_warp(F, frames, fixed_positions, steadiness: float, fine: int = FINE,
+def steady_warp(F, frames, fixed_positions, steadiness: float, natural=1.0,
                 corridor: int = CORRIDOR) -> SteadyWarp:
     """The steady warp near the discrete warp ``frames`` (grid frames at the output frames).
 
     F: the squared-distance score table; fixed_positions: output positions that keep their grid
-    frame (both ends and the keytimes)."""
+    frame (both ends and the keytimes); natural: grid frames per output frame at the original
+    speed (the upsampling), one number or one per output position (a segment takes its first's)."""
     frames = np.asarray(frames, dtype=np.int64)
     m = len(frames)
     D = speed_costs(np.asarray(F))
     lam = penalty_weight(D, steadiness)
     cuts = sorted({0, m - 1, *[int(p) for p in fixed_positions if 0 <= int(p) < m]})
+    natural = np.broadcast_to(np.asarray(natural, dtype=float), (m,))
     out = np.empty(m)
     total = 0.0
     for p0, p1 in zip(cuts, cuts[1:]):
         part, obj = _refine_segment(D, frames[p0:p1 + 1], int(frames[p0]), int(frames[p1]), F.shape[1], lam,
-                                    int(fine), int(corridor))
+                                    float(natural[p0]), int(corridor))
         out[p0:p1 + 1] = part
         total += obj
     return SteadyWarp(out, total)
