@@ -230,7 +230,8 @@ class DynamicsTerms:
         # a noise level is a local statistic: the RMS over +-NOISE_BAND (a single difference can
         # cross zero where the noise is large)
         win = max(1, int(round(NOISE_BAND * self.fps * self.samples_per_frame)))
-        rms = np.sqrt(uniform_filter1d(diff ** 2, 2 * win + 1, axis=0, mode="constant"))
+        # (the running sum of the filter leaves rounding residues, slightly negative, beside large values)
+        rms = np.sqrt(np.maximum(uniform_filter1d(diff ** 2, 2 * win + 1, axis=0, mode="constant"), 0.0))
         b_noise[stance, :nr] = np.minimum(rms[stance], cap)
         return b_noise
 
