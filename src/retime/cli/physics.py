@@ -85,8 +85,8 @@ def register(sub):
     p.add_argument("--start", choices=("global", "uniform"), default="global",
                    help="where the optimizer starts: the grid-optimal timing found by dynamic programming "
                         "(default; not with keytimes) or the uniform timing, as in the paper")
-    p.add_argument("--report", metavar="REPORT.json", help="per output frame: contact, feasibility, distance, torque norm; each source frame's feasible region "
-                   "(for retime plot --regions)")
+    p.add_argument("--report", metavar="REPORT.json", help="per output frame: contact, feasibility, distance, "
+                   "torque norm; each source frame's feasible region (for retime plot --regions)")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(func=run)
 
