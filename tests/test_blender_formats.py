@@ -112,6 +112,22 @@ def test_retimed_file_plays_the_new_timing(characters, source, output):
     assert scene["meshes"]["Body"]["materials"] == ["Skin"] and scene["meshes"]["Body"]["deformed_by_armature"]
 
 
+def test_fbx_passes_keep_the_keys(characters):
+    """A clip converted to FBX and then FBX to FBX three times: every file keys the same frames (Blender's
+    importer offsets an FBX's keys one frame later by default, which each pass used to write back), plays
+    the same poses, and its armature is named after the clip, not after a temporary file."""
+    tmp = characters
+    passes = [tmp / "clip.fbx", tmp / "clip_2.fbx", tmp / "clip_3.fbx", tmp / "clip_4.fbx"]
+    retime(tmp, "convert", bundled_path("16_06.amc"), passes[0])
+    for source, output in zip(passes, passes[1:]):
+        retime(tmp, "convert", source, output)
+    for path in passes:
+        (name, arm), = inspect(tmp, path)["armatures"].items()
+        assert (name, arm["frame_range"]) == ("clip", [1.0, 407.0]), path.name
+    last = load_motion_bpy(tmp, passes[-1])
+    assert last.n_frames == 407 and same_poses(load_motion(tmp / "jump.bvh"), last) < TOLERANCE
+
+
 def test_physics_writes_fbx(characters):
     """The judged path: an FBX character retimed to half its duration with physics, its poses those of the
     BVH output of the same request."""

@@ -92,6 +92,25 @@ def test_region_plot_and_strip(tmp_path, physics_report):
     assert main(["plot", "--regions", str(path), "--frame", "10", "-o", str(tmp_path / "c.png")]) == 0
 
 
+def test_a_plain_physics_report_has_the_regions_to_plot(tmp_path):
+    """README: `retime physics 16_06.amc --report h.json`, then `retime plot --regions h.json --frame 40`.
+    The report used to hold no region (only the demo stored them: "no region stored for this frame");
+    each frame's stored region now agrees with the report's own distance of its timing to the region."""
+    from retime.data import bundled_path
+    from retime.viz.regions import _polygon_distance
+
+    report_path = tmp_path / "h.json"
+    assert main(["physics", str(bundled_path("16_06.amc")), "-o", str(tmp_path / "h.bvh"), "--scale", "0.5",
+                 "--report", str(report_path), "--quiet"]) == 0
+    report = load_report(report_path)
+    frames = report["frames"]
+    assert all(f["region"] is not None and len(f["region"]) >= 3 for f in frames)
+    distance = np.array([_polygon_distance(np.array([f["point"]]), f["region"])[0] for f in frames])
+    np.testing.assert_allclose(distance, [f["distance"] for f in frames], atol=2e-2)  # 4 significant digits
+    assert report_path.stat().st_size < 200 * 1024 + 400 * len(frames)  # compact: a few hundred bytes a frame
+    assert main(["plot", "--regions", str(report_path), "--frame", "40", "-o", str(tmp_path / "r.png")]) == 0
+
+
 def test_report_contacts_map_to_joints():
     from retime.data import bundled_path
     from retime.motion import load_motion

@@ -1,6 +1,7 @@
 """What a file holds once Blender imports it: ``python inspect_scene.py FILE OUT.json`` writes the meshes
 (vertices, polygons, vertex groups, the armature deforming them, materials), the armatures (bones, the action's
-frame range) and the scene's frame rate."""
+frame range, keys where the file has them: FBX imported without Blender's default one-frame offset) and
+the scene's frame rate."""
 import json
 import os
 import sys
@@ -10,7 +11,7 @@ import bpy
 path, out = sys.argv[1:3]
 bpy.ops.wm.read_factory_settings(use_empty=True)
 if path.lower().endswith(".fbx"):
-    bpy.ops.import_scene.fbx(filepath=path)
+    bpy.ops.import_scene.fbx(filepath=path, anim_offset=0.0)
 elif path.lower().endswith(".bvh"):
     bpy.ops.import_anim.bvh(filepath=path, update_scene_fps=True)
 else:

@@ -85,7 +85,8 @@ def register(sub):
     p.add_argument("--start", choices=("global", "uniform"), default="global",
                    help="where the optimizer starts: the grid-optimal timing found by dynamic programming "
                         "(default; not with keytimes) or the uniform timing, as in the paper")
-    p.add_argument("--report", metavar="REPORT.json", help="per output frame: contact, feasibility, distance, torque norm")
+    p.add_argument("--report", metavar="REPORT.json", help="per output frame: contact, feasibility, distance, "
+                   "torque norm; each source frame's feasible region (for retime plot --regions)")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(func=run)
 
@@ -109,7 +110,7 @@ def run(args):
     duration = None if args.duration is None and args.scale is None else answer.curve.duration  # None: free
     write_outputs(args, m, result.curve, apply_timing(m, result.curve))
     if args.report:
-        write_report(result.report, args.report)
+        write_report(result.report, args.report, regions=result.regions)  # `retime plot --regions` draws them
     if args.write_body:
         from ..physics.body import write_body
 

@@ -102,7 +102,20 @@ def finite(value):
     return value
 
 
-def write_report(report: dict, path) -> None:
+REGION_DIGITS = 4  # significant digits of a stored region's vertices: a plot's precision, a fifth of the bytes
+
+
+def region_polygons(regions, digits=REGION_DIGITS) -> list:
+    """Each source frame's feasible region, [[p'', p'^2], ...], to ``digits`` significant digits: what
+    ``retime plot --regions`` draws (about 180 bytes a frame)."""
+    return [[[float(f"{v:.{digits}g}") for v in vertex] for vertex in np.asarray(regions.polygon(i), dtype=float)]
+            for i in range(regions.n_frames)]
+
+
+def write_report(report: dict, path, regions=None) -> None:
+    """Write the report as JSON, atomically; with ``regions``, each source frame's region beside the frames."""
+    if regions is not None:
+        report = {**report, "regions": region_polygons(regions)}
     text = json.dumps(finite(report), indent=1, allow_nan=False)  # before the file is opened
     with atomic_write(path, "w") as f:
         f.write(text + "\n")

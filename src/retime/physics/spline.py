@@ -166,8 +166,13 @@ class TimingSpline:
 
         T = self.duration
         n = max(8, int(np.ceil(T * fps * per_frame)) + 1)
-        t = np.linspace(0.0, T, n)
-        t = np.union1d(t, self.breaks * T)
+        grid = np.linspace(0.0, T, n)
+        # the breaks where they are not a grid time already: a break a rounding error from a grid time made
+        # a knot interval of 1e-17 s, across which the monotone cubic's slope is zero (false stops)
+        breaks = self.breaks * T
+        k = np.clip(np.searchsorted(grid, breaks), 1, n - 1)
+        apart = np.minimum(breaks - grid[k - 1], grid[k] - breaks) > 1e-9 * max(T, 1.0)
+        t = np.union1d(grid, breaks[apart])
         s = self(t)
         s[0], s[-1] = 0.0, self.S
         s = np.maximum.accumulate(s)

@@ -189,12 +189,8 @@ def run_demo(
                     from retime.physics.report import write_report as write_physics_report
 
                     rep = out / f"{stem}_{name}_report.json"
-                    data = dict(r.raw_report)
-                    regions = r.physics.regions
-                    # the polygons per source frame, so that `retime plot --regions` can draw any frame
-                    data["regions"] = [np.round(np.asarray(regions.polygon(i), dtype=float), 6).tolist()
-                                       for i in range(regions.n_frames)]
-                    write_physics_report(data, rep)
+                    # with the regions per source frame, so that `retime plot --regions` can draw any frame
+                    write_physics_report(r.raw_report, rep, regions=r.physics.regions)
                     r.files["report"] = rep.name
             results.append(r)
             bar.update(1)

@@ -49,7 +49,9 @@ def import_scene(path):
     scene = empty_scene()
     suffix = os.path.splitext(path)[1].lower()
     if suffix == ".fbx":
-        _run_operator("importer", bpy.ops.import_scene.fbx, filepath=path)  # sets the scene's rate from the file's time mode
+        # sets the scene's rate from the file's time mode; no offset (the default shifts the keys one frame
+        # later, and written back each pass, the file's animation drifted a frame per round trip)
+        _run_operator("importer", bpy.ops.import_scene.fbx, filepath=path, anim_offset=0.0)
     else:
         # glTF keeps times in seconds and the importer turns them into frames at the scene's rate (a glTF
         # sampled at 30 Hz imported at Blender's default 24 fps lands between frames): use the file's rate
@@ -146,7 +148,8 @@ def write(source, poses_npz, out):
         n_frames = put_poses(bpy.context, obj, poses, start)
     else:
         scene = empty_scene()
-        bvh = out + ".source.bvh"
+        # Blender names the armature after the BVH file: after the clip written, not a temporary name
+        bvh = os.path.join(os.path.dirname(out), os.path.splitext(os.path.basename(out))[0] + ".bvh")
         with open(bvh, "w") as f:
             f.write(str(poses["bvh_text"]))
         try:
