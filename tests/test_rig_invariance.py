@@ -273,3 +273,76 @@ def test_info_prints_what_was_detected_and_the_floating_base(jump_curves, tmp_pa
     assert main(["info", str(path), "--up", "y", "--units", "cm"]) == 0
     out = capsys.readouterr().out
     assert "up        +y (given)" in out and "centimetres" in out and "given" in out
+
+
+# ---------------------------------------------------------------------------------------------
+# names never change the body
+
+CONVENTIONS = ["mixamo", "unreal", "rigify", "biped", "kinect", "cmu"]
+BUNDLED_RIGS = ["16_06.amc", "131_01.bvh"]  # CMU's ASF skeleton and a cgspeed BVH conversion
+
+
+def _body(motion):
+    from retime.physics.body import default_body
+
+    m = conform(motion).motion
+    return default_body(m.skeleton, motion=m)
+
+
+def _assert_same_body(a, b, what):
+    """Joint by joint (the names differ): segment kinds, masses, centres of mass, inertias, soles."""
+    assert [a.segments[n] for n in a.names] == [b.segments[n] for n in b.names], what
+    np.testing.assert_allclose(b.mass, a.mass, rtol=1e-6, atol=1e-6, err_msg=what)
+    np.testing.assert_allclose(b.com, a.com, atol=1e-6, err_msg=what)
+    np.testing.assert_allclose(b.inertia, a.inertia, atol=1e-7, err_msg=what)
+    for fa, fb in zip(a.feet, b.feet):
+        assert (fa.side, a.names.index(fa.joint), a.names.index(fa.toe_joint)) == \
+            (fb.side, b.names.index(fb.joint), b.names.index(fb.toe_joint)), what
+        np.testing.assert_allclose(np.r_[fb.heel, fb.toe], np.r_[fa.heel, fa.toe], atol=1e-6, err_msg=what)
+
+
+def _rig_files():
+    files = [bundled_path(n) for n in BUNDLED_RIGS]
+    if DEV.is_dir():
+        files += sorted(DEV.glob("*.bvh"))
+    return files
+
+
+@pytest.mark.parametrize("path", _rig_files(), ids=lambda p: p.name)
+def test_every_naming_convention_gives_the_same_body(path, tmp_path):
+    original = _written(load_motion(path), tmp_path, "orig")
+    body = _body(original)
+    assert sum(body.segments[n] == "thigh" for n in body.names) >= 2
+    for convention in CONVENTIONS:
+        renamed = _written(V.rename(original, convention), tmp_path, convention)
+        _assert_same_body(body, _body(renamed), f"{path.name} as {convention}")
+
+
+UNREAL_CMU = {"root": "pelvis", "lowerback": "spine_01", "upperback": "spine_02", "thorax": "spine_03",
+              "lowerneck": "neck_01", "upperneck": "neck_02", "head": "head"}
+for _s in "lr":
+    UNREAL_CMU.update({f"{_s}hipjoint": f"hip_{_s}", f"{_s}femur": f"thigh_{_s}", f"{_s}tibia": f"calf_{_s}",
+                       f"{_s}foot": f"foot_{_s}", f"{_s}toes": f"ball_{_s}", f"{_s}clavicle": f"clavicle_{_s}",
+                       f"{_s}humerus": f"upperarm_{_s}", f"{_s}radius": f"lowerarm_{_s}", f"{_s}wrist": f"hand_{_s}",
+                       f"{_s}hand": f"middle_metacarpal_{_s}", f"{_s}fingers": f"middle_01_{_s}",
+                       f"{_s}thumb": f"thumb_01_{_s}"})
+
+
+def test_a_pelvis_side_bone_named_like_a_hip_is_not_the_thigh(jump, tmp_path):
+    """The issue's reproduction: the CMU jump with Unreal names, its pelvis-side hip joints called
+    hip_l / hip_r (a thigh word) above thigh_l / thigh_r, gave a right thigh of 5.87 kg, a left one
+    of 9.91 kg (the hip bones were taken into the thighs, one on the wrong side), and moved the
+    physics timing by 3.9 source frames."""
+    import dataclasses
+
+    original = _written(jump, tmp_path, "orig")
+    sk = dataclasses.replace(original.skeleton, names=[UNREAL_CMU[n] for n in original.skeleton.names])
+    renamed = _written(original.replace(skeleton=sk), tmp_path, "unreal_by_hand")
+    a, b = _body(original), _body(renamed)
+    _assert_same_body(a, b, "CMU as Unreal, by hand")
+    thigh = {n: float(m) for n, m in zip(b.names, b.mass) if b.segments[n] == "thigh"}
+    assert set(thigh) == {"thigh_l", "thigh_r"} and thigh["thigh_l"] == pytest.approx(thigh["thigh_r"], rel=0.02)
+    assert b.segments["hip_l"] == b.segments["hip_r"] == "pelvis"
+    pa, pb = physics_warp(original, scale=0.7), physics_warp(renamed, scale=0.7)
+    t = np.linspace(0, pa.curve.duration, 300)
+    assert np.abs(pa.curve(t) - pb.curve(t)).max() < 0.5 / original.fps

@@ -17,7 +17,7 @@ import numpy as np
 
 from .fk import forward_kinematics
 from .model import LENGTH_UNITS
-from .rig import Limbs, NotBiped, find_limbs, floating_base, nearest_pair_tips, part_of
+from .rig import Limbs, NotBiped, bone_joints, find_limbs, floating_base, nearest_pair_tips
 
 AXES = {"x": 0, "y": 1, "z": 2}
 UNITS = {k: v for k, v in LENGTH_UNITS.items() if k != "dm"}  # the units files are written in
@@ -120,16 +120,13 @@ def detect_up(positions, top: int, feet) -> tuple[str, float]:
     return best, votes[best] / len(v)
 
 
-def _leg_length(motion, limbs):
+def _leg_length(motion, positions, limbs):
+    """Hip to ankle along the bones (the thigh's twist joints included, whatever their names)."""
     sk = motion.skeleton
     lengths = []
-    for thigh, _, foot, _ in limbs.legs.values():
-        top = thigh
-        while sk.parents[top] >= 0 and top != 0:
-            p = int(sk.parents[top])
-            if part_of(sk.names[p]) != "thigh":
-                break
-            top = p
+    feet = [leg[2] for leg in limbs.legs.values()]
+    for _, shank, foot, _ in limbs.legs.values():
+        top = bone_joints(sk, positions, shank, stop=[f for f in feet if f != foot])[-1]
         j, total = foot, 0.0
         while j != top and j > 0:
             total += float(np.median(np.linalg.norm(motion.translations[:, j], axis=1)))
@@ -145,7 +142,7 @@ def detect_units(motion, positions, limbs, up: str):
     feet = [leg[2] for leg in limbs.legs.values()]
     top = limbs.head if limbs.head is not None else floating_base(motion.skeleton)
     stand = float(np.percentile(height[:, top] - height[:, feet].min(axis=1), 95))
-    leg = _leg_length(motion, limbs)
+    leg = _leg_length(motion, positions, limbs)
     cues = []
     if np.isfinite(leg) and leg > 0:
         cues.append(TYPICAL_LEG_M / leg)

@@ -204,10 +204,19 @@ def _toe_below(skeleton, foot, kids):
     return real[0] if len(real) == 1 else foot
 
 
+def _top_of(skeleton, j, part):
+    """The highest of the joints named ``part`` in a row from ``j`` up (a forearm's bend joint above
+    its twist joint: the elbow is where the bone starts)."""
+    while skeleton.parents[j] > 0 and part_of(skeleton.names[int(skeleton.parents[j])]) == part:
+        j = int(skeleton.parents[j])
+    return j
+
+
 def _leg_chain(skeleton, foot, kids):
     """(thigh, shank, foot, toe) from the foot joint up, by names where they say, else by position."""
     up = _ancestors(skeleton.parents, foot)
-    shank = next((a for a in up[:3] if part_of(skeleton.names[a]) == "shank"), up[0] if up else foot)
+    shank = next((_top_of(skeleton, a, "shank") for a in up[:3] if part_of(skeleton.names[a]) == "shank"),
+                 up[0] if up else foot)
     above = _ancestors(skeleton.parents, shank)
     thigh = next((a for a in above[:3] if part_of(skeleton.names[a]) == "thigh"), above[0] if above else shank)
     return (thigh, shank, foot, _toe_below(skeleton, foot, kids))
@@ -215,10 +224,41 @@ def _leg_chain(skeleton, foot, kids):
 
 def _arm_chain(skeleton, hand):
     up = _ancestors(skeleton.parents, hand)
-    fore = next((a for a in up[:3] if part_of(skeleton.names[a]) == "forearm"), up[0] if up else hand)
+    fore = next((_top_of(skeleton, a, "forearm") for a in up[:3] if part_of(skeleton.names[a]) == "forearm"),
+                up[0] if up else hand)
     above = _ancestors(skeleton.parents, fore)
     upper = next((a for a in above[:3] if part_of(skeleton.names[a]) == "upperarm"), above[0] if above else fore)
     return (upper, fore, hand)
+
+
+IN_LINE_DEG = 15.0  # a joint whose bone stays this close to the next bone's direction is part of that bone
+
+
+def bone_joints(skeleton, positions, end: int, stop=()) -> list[int]:
+    """The joints that carry the bone ending at joint ``end`` (a knee, an ankle, an elbow), from its
+    parent up: the parent, then each joint above whose own bone stays in line with that bone (twist
+    and bend joints: within :data:`IN_LINE_DEG` in 95 % of the frames of the world ``positions``
+    (F, J, 3), or of zero length), whatever the joints are named. Never the root, nor a joint above
+    any of ``stop`` (the other limbs' ends): a pelvis-side bone (CMU's hip joint) bends away from
+    the thigh, so it is not the thigh."""
+    parents = skeleton.parents
+    top = int(parents[end])
+    if top <= 0:
+        return [top] if top == 0 else []
+    run = [top]
+    main = positions[:, end] - positions[:, top]  # (F, 3)
+    size = float(np.median(np.linalg.norm(main, axis=1)))
+    while True:
+        p = int(parents[run[-1]])
+        if p <= 0 or any(p in _ancestors(parents, s) for s in stop):
+            return run
+        bone = positions[:, run[-1]] - positions[:, p]
+        length = np.linalg.norm(bone, axis=1)
+        if np.median(length) > 1e-3 * size:
+            cos = np.sum(bone * main, axis=1) / np.maximum(length * np.linalg.norm(main, axis=1), 1e-12)
+            if np.percentile(cos, 5) < np.cos(np.radians(IN_LINE_DEG)):
+                return run
+        run.append(p)
 
 
 def limbs_by_name(skeleton) -> Limbs | None:

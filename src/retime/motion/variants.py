@@ -6,7 +6,7 @@ give it the same timing curve (the tests check this on real files):
 * :func:`turn_up` - the world turned so that the body's up is another axis (Z-up, -Y-up, X-up);
 * :func:`rescale` - lengths in another unit (mm, inches, m, ...);
 * :func:`rename` - joint names in another convention (Mixamo, Unreal, Rigify, 3ds Max Biped, Kinect,
-  Second Life, Xsens);
+  Second Life, Xsens, CMU);
 * :func:`add_dummy_root` - a reference joint above the hips, holding all, none or part of the travel;
 * :func:`six_channels` - position channels on every joint, holding the bone offset.
 
@@ -23,7 +23,7 @@ from scipy.spatial.transform import Rotation
 
 from .model import POSITION_CHANNELS, Motion
 from .quat import qmul, qrot
-from .rig import part_of, side_and_part
+from .rig import _SIDE_WORDS, name_words, part_of, side_and_part
 
 _TURNS = {"+y": np.eye(3), "+z": Rotation.from_euler("x", 90, degrees=True).as_matrix().round(),
           "-z": Rotation.from_euler("x", -90, degrees=True).as_matrix().round(),
@@ -78,6 +78,10 @@ _CONVENTIONS = {
               "parts": {"thigh": "Thigh", "shank": "Calf", "foot": "Foot", "toe": "Toe0", "upperarm": "UpperArm",
                         "forearm": "Forearm", "hand": "Hand", "clavicle": "Clavicle", "head": "Head", "neck": "Neck"},
               "other": "Bip01 {name}"},
+    "cmu": {"side": {"left": "l", "right": "r"}, "fmt": "{side}{part}",
+            "parts": {"thigh": "femur", "shank": "tibia", "foot": "foot", "toe": "toes", "upperarm": "humerus",
+                      "forearm": "radius", "hand": "wrist", "clavicle": "clavicle", "head": "head", "neck": "lowerneck"},
+            "other": "{name}"},
 }
 
 
@@ -126,10 +130,15 @@ def rename(motion: Motion, convention: str = "mixamo") -> Motion:
 
 
 def _neutral_words(name):
-    side, rest = side_and_part(name)
+    """The words of a joint name that is no limb, without its side and numbers (kept apart, so a
+    helper stays a helper: L_Talus_RIGMESH -> TalusRigmesh)."""
     if part_of(name) is not None:
         return ["bone"]
-    return [w for w in (rest,) if w]
+    side = side_and_part(name)[0]
+    words = [w for w in name_words(name) if not w.isdigit()]
+    if side is not None and words and _SIDE_WORDS.get(words[0]) == side:
+        words = words[1:]
+    return words
 
 
 def add_dummy_root(motion: Motion, name: str = "Reference", share: float = 1.0, props: int = 0) -> Motion:

@@ -9,10 +9,13 @@ Defaults (every value can be overridden by a TOML body file, see :func:`read_bod
   head+neck 6.94 %, trunk 43.46 % (pelvis 11.17 %, the rest of the trunk 32.29 %), and per side
   upper arm 2.71 %, forearm 1.62 %, hand 0.61 %, thigh 14.16 %, shank 4.33 %, foot 1.37 %.
   Skeleton joints are assigned to these segments from the skeleton's limbs
-  (:mod:`retime.motion.rig`: by name on any naming convention, else by structure): foot joint and
-  its descendants = foot, the joints up to the shank = shank, up to the thigh (and its twist or bend
-  joints named like a thigh) = thigh, joints between the thigh and the root = pelvis (with the root);
-  hand joint and descendants = hand, up to the forearm = forearm, up to the upper arm = upper arm;
+  (:mod:`retime.motion.rig`: by name on any naming convention, else by structure) and their
+  geometry, never their names: foot joint and its descendants = foot, the joints up to the knee (the
+  shank joint) = shank, the bone from the hip to the knee (the knee's parent and the joints above it
+  in line with it, such as twist or bend joints: :func:`~retime.motion.rig.bone_joints`) = thigh,
+  joints between the thigh and the root = pelvis (with the root; CMU's hip joints, which bend away
+  from the thigh); hand joint and descendants = hand, up to the elbow = forearm, the bone ending at
+  the elbow = upper arm;
   joints named like head/neck (and descendants) = head; the rest = trunk. A segment made of several joints shares its mass in proportion to bone length (side
   branches of the trunk, such as clavicles, count 0.3 of their length). Missing segments give their
   share to the others proportionally.
@@ -48,7 +51,7 @@ import numpy as np
 
 from ..errors import FormatError, RetimeError
 from ..io_util import atomic_write
-from ..motion.rig import Limbs, NotBiped, descendants, limbs_by_name, part_of
+from ..motion.rig import Limbs, NotBiped, bone_joints, descendants, limbs_by_name, part_of
 from .tree import FIXED, FREE, SPHERICAL, TreeModel
 
 BODY_MASS = 70.0
@@ -268,45 +271,54 @@ def _path_up(parents, start, stop):
     return out
 
 
-def classify_segments(skeleton, feet=None) -> dict[int, str]:
+def classify_segments(skeleton, feet=None, positions=None) -> dict[int, str]:
     """de Leva segment of every joint (see the module docstring), from the skeleton's limbs."""
+    return limb_segments(skeleton, feet, positions)[0]
+
+
+def limb_segments(skeleton, feet=None, positions=None) -> tuple[dict[int, str], dict[int, str]]:
+    """({joint: de Leva segment}, {joint: side} of the sided ones) from the limbs' geometry: the
+    thigh is the bone from the hip to the knee (:func:`~retime.motion.rig.bone_joints` on the world
+    ``positions`` (F, J, 3), default the rest pose), the shank the joints from the knee to the ankle,
+    and so on, whatever the joints are named."""
     parents = skeleton.parents
     feet = feet or find_feet(skeleton)
+    if positions is None:
+        positions = rest_positions(skeleton)[None]
     try:
         limbs = skeleton_limbs(skeleton)
     except RetimeError:
         limbs = None
+    arms = limbs.arms if limbs is not None else {}
+    ends = [f for f, _ in feet.values()] + [hand for _, _, hand in arms.values()]
+    if limbs is not None and limbs.head is not None:
+        ends.append(limbs.head)
     seg: dict[int, str] = {0: "pelvis"}
+    side_of: dict[int, str] = {}
+
+    def put(joints, segment, side):
+        for j in joints:
+            if j not in seg:
+                seg[j] = segment
+                side_of[j] = side
+
     for side, (foot, _) in feet.items():
-        for k in descendants(parents, foot):
-            seg[k] = "foot"
+        put(descendants(parents, foot), "foot", side)
         leg = limbs.legs.get(side) if limbs is not None else None
-        if leg is None or leg[2] != foot:
-            p = int(parents[foot])
-            leg = (int(parents[p]) if p > 0 else p, p, foot, foot)
-        thigh, shank = leg[0], leg[1]
-        for j in _path_up(parents, int(parents[foot]), shank):
-            seg.setdefault(j, "shank")
-        above = int(parents[shank]) if shank > 0 else 0
-        for j in _path_up(parents, above, thigh):
-            seg.setdefault(j, "thigh")
-        j = int(parents[thigh]) if thigh > 0 else 0
-        while j > 0 and part_of(skeleton.names[j]) == "thigh" and j not in seg:
-            seg[j] = "thigh"
-            j = int(parents[j])
+        shank = leg[1] if leg is not None and leg[2] == foot else int(parents[foot])
+        put(_path_up(parents, int(parents[foot]), shank), "shank", side)
+        thigh = bone_joints(skeleton, positions, shank, stop=[e for e in ends if e != foot])
+        put(thigh, "thigh", side)
+        j = int(parents[thigh[-1]]) if thigh and thigh[-1] > 0 else 0
         while j > 0 and j not in seg:
             seg[j] = "pelvis"
             j = int(parents[j])
-    for side, (upper, fore, hand) in (limbs.arms if limbs is not None else {}).items():
+    for side, (upper, fore, hand) in arms.items():
         if hand in seg:
             continue
-        for k in descendants(parents, hand):
-            seg.setdefault(k, "hand")
-        for j in _path_up(parents, int(parents[hand]), fore):
-            seg.setdefault(j, "forearm")
-        above = int(parents[fore]) if fore > 0 else 0
-        for j in _path_up(parents, above, upper):
-            seg.setdefault(j, "upperarm")
+        put(descendants(parents, hand), "hand", side)
+        put(_path_up(parents, int(parents[hand]), fore), "forearm", side)
+        put(bone_joints(skeleton, positions, fore, stop=[e for e in ends if e != hand]), "upperarm", side)
     heads = [j for j, n in enumerate(skeleton.names) if j not in seg and part_of(n) in ("head", "neck")]
     if limbs is not None and limbs.head is not None and limbs.head not in seg:
         heads.append(limbs.head)
@@ -315,18 +327,7 @@ def classify_segments(skeleton, feet=None) -> dict[int, str]:
             seg.setdefault(k, "head")
     for j in range(skeleton.n_joints):
         seg.setdefault(j, "trunk")
-    return seg
-
-
-def _limb_side(limbs, j, parents):
-    """'left' or 'right' for a joint of a sided segment: the side of the limb it hangs from."""
-    for side, chain in list(limbs.legs.items()) + list(limbs.arms.items()):
-        k = j
-        while k > 0:
-            if k in chain:
-                return side
-            k = int(parents[k])
-    return None
+    return seg, side_of
 
 
 def _rod_inertia(mass, vec, kt, kl):
@@ -342,13 +343,14 @@ def default_body(skeleton, mass=None, feet_names=None, motion=None, frames=None)
     """The documented default body for ``skeleton`` (total ``mass`` in kg, default 70); ``motion``
     (or its world ``frames``, see :func:`world_frames`, with the motion) places the soles (see
     :func:`default_foot`)."""
-    rest = rest_positions(skeleton)
     if mass is None:
         mass = BODY_MASS
     if not (mass > 0):
         raise RetimeError(f"body mass must be positive, got {mass}")
     feet_idx = find_feet(skeleton, feet_names)
-    seg = classify_segments(skeleton, feet_idx)
+    if motion is not None and frames is None:
+        frames = world_frames(motion)
+    seg, side_of = limb_segments(skeleton, feet_idx, frames[0] if frames is not None else None)
     ends = bone_ends(skeleton)
     length = np.linalg.norm(ends, axis=1)
     # ancestors of head joints are spine; other trunk joints are side branches
@@ -360,20 +362,8 @@ def default_body(skeleton, mass=None, feet_names=None, motion=None, frames=None)
                 spine.add(k)
                 k = int(skeleton.parents[k])
     groups: dict[tuple[str, str | None], list[int]] = {}
-    try:
-        limbs = skeleton_limbs(skeleton)
-    except RetimeError:
-        limbs = None
     for j, s in seg.items():
-        side = None
-        if s in SIDED:
-            side = _limb_side(limbs, j, skeleton.parents) if limbs is not None else None
-            if side is None:
-                side = "left" if rest[j, 0] - rest[0, 0] > 0 else "right"
-            for sd, (foot, _) in feet_idx.items():
-                if j in descendants(skeleton.parents, foot):
-                    side = sd
-        groups.setdefault((s, side), []).append(j)
+        groups.setdefault((s, side_of.get(j) if s in SIDED else None), []).append(j)
     share = {g: DE_LEVA[g[0]][0] for g in groups}
     scale = mass / sum(share.values())
     m = np.zeros(skeleton.n_joints)
@@ -388,8 +378,6 @@ def default_body(skeleton, mass=None, feet_names=None, motion=None, frames=None)
             m[j] = share[g] * scale * wj
             com[j] = frac * ends[j]
             inertia[j] = _rod_inertia(m[j], ends[j], kt, kl)
-    if motion is not None and frames is None:
-        frames = world_frames(motion)
     fps = motion.fps if motion is not None else None
     feet = [default_foot(skeleton, side, foot, toe, frames if motion is not None else None, fps)
             for side, (foot, toe) in feet_idx.items()]
