@@ -276,6 +276,14 @@ def test_absurd_output_lengths_are_refused(capsys, clip, flags, message):
     fails_cleanly(capsys, ["linear", clip / "16_15.amc", "-o", out, *flags], message, out=out)
 
 
+def test_guided_free_and_fast_is_refused(capsys, clip):
+    """--free --fast silently ran the exact search (and said "(exact; ...)"): the heuristic needs a fixed
+    output duration, so the combination is one line, before any search."""
+    out = clip / "o.bvh"
+    fails_cleanly(capsys, ["guided", clip / "16_15.amc", "-o", out, "--free", "--fast"], "--fast", "drop --fast or --free",
+                  out=out)
+
+
 SMALL_BVH = ("HIERARCHY\nROOT a\n{\n OFFSET 0 0 0\n CHANNELS 3 Xrotation Yrotation Zrotation\n End Site\n {\n"
              "  OFFSET 0 1 0\n }\n}\nMOTION\nFrames: 2\nFrame Time: 0.1\n0 0 0\n1 1 1\n")
 

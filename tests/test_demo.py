@@ -173,3 +173,47 @@ def test_report_in_headless_chromium(demo):
     assert video is not None and video["error"] is None and video["ready"] >= 1, video
     assert video["width"] > 0
     assert video["duration"] == pytest.approx(demo.source_duration, abs=0.15)
+
+
+def _commands(html):
+    block = re.search(r'<pre class="commands">(.*?)</pre>', html, re.S).group(1)
+    import html as html_module
+
+    return [html_module.unescape(c) for c in re.findall(r"<span>(.*?)</span>", block)]
+
+
+def test_commands_name_real_paths(demo):
+    """The "same from the command line" block: its clip is a file that exists, its outputs the demo's."""
+    import shlex
+
+    html = demo.report_path.read_text()
+    cmds = _commands(html)
+    assert cmds[0] == f"cd {shlex.quote(str(demo.out_dir.resolve()))}"
+    for cmd in cmds[1:]:
+        if cmd.startswith("#"):
+            continue
+        files = [w for w in shlex.split(cmd) if re.search(r"\.[a-z]+$", w)]
+        assert files and all((demo.out_dir / w).is_file() for w in files), cmd  # the clip's path is absolute
+    assert "Retiming CMU 16_06" in html and "mocap.cs.cmu.edu" in html
+
+
+JUMPING = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bvh-dev" / "jumping.bvh"
+
+
+@pytest.mark.skipif(not JUMPING.is_file(), reason="the dev set's jumping.bvh (../shared) is not here")
+def test_demo_on_a_z_up_clip_finds_the_flight_physics_finds(tmp_path):
+    """jumping.bvh (Z-up, not CMU's): the demo found its flight at 3.44-5.45 s on the raw motion, where
+    physics finds 2.44-2.85 s, and so printed flight speeds of 4.25x (guided) and 2.63x (physics);
+    titled it "CMU motion capture"; and named src/retime/data/cmu/jumping.bvh in its commands."""
+    demo = run_demo(tmp_path, clip=str(JUMPING), video=False, quiet=True)
+    phys = next(m for m in demo.methods if m.name == "physics")
+    assert phys.curve is not None, phys.error
+    flights = [p for p in phys.raw_report["summary"]["phases"] if p["state"] == "flight"]
+    longest = max(flights, key=lambda p: p["source_end"] - p["source_start"])
+    frame = 1.0 / demo.fps
+    assert demo.flight[0] == pytest.approx(longest["source_start"], abs=2 * frame)
+    assert demo.flight[1] == pytest.approx(longest["source_end"], abs=2 * frame)
+    assert phys.flight_speed == pytest.approx(longest["speed"], rel=0.05)
+    html = demo.report_path.read_text()
+    assert "CMU" not in html
+    assert Path(_commands(html)[1].split()[2]) == JUMPING

@@ -33,9 +33,12 @@ def flights(contact, fps: float, min_frames: int = 3) -> list[tuple[float, float
             if not in_contact and b - a + 1 >= min_frames]
 
 
-def longest_flight(contact, fps: float, min_frames: int = 3) -> tuple[float, float] | None:
-    """The longest flight (the first of equal ones), or None."""
-    found = flights(contact, fps, min_frames)
+def longest_flight(contact, times) -> tuple[float, float] | None:
+    """(start, end) source times of the longest flight phase (the first of equal ones) as
+    :func:`contact_phases` gives it to every method's report (from its first frame in the air to the
+    first frame back on the ground), or None."""
+    found = [(p["source_start"], p["source_end"]) for p in contact_phases(contact, times, lambda s: s)
+             if p["state"] == "flight"]
     return max(found, key=lambda f: f[1] - f[0]) if found else None
 
 

@@ -38,7 +38,7 @@ def register(sub):
                    help="skip limit: an output frame advances at most S grid frames, so playback is at most S times "
                         "the original speed (S/U when the grid is upsampled U times; default 8)")
     p.add_argument("--neighbors", type=int, default=3, metavar="K", help="nearest reference features per score (default 3)")
-    p.add_argument("--fast", action="store_true", help="coarse-to-fine heuristic instead of the exact search")
+    p.add_argument("--fast", action="store_true", help="coarse-to-fine heuristic instead of the exact search (not with --free)")
     p.add_argument("--weights", type=weights_arg, metavar="P,V,A[,H]",
                    help="feature weights: pose, velocity (s), acceleration (s^2) and root height "
                         "(default 1,0.1,0.01,1; H=0 gives the paper's torso-frame features only)")

@@ -287,6 +287,9 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
     if free:
         if keytimes:
             raise RetimeError("keytimes need a fixed output duration; drop --free or the keytimes")
+        if fast:  # the coarse-to-fine heuristic works within a fixed frame count; it was silently exact
+            raise RetimeError("--fast (the coarse-to-fine search) needs a fixed output duration, and a free duration "
+                              "is searched exactly; drop --fast or --free")
         T = None
     elif scale is not None:
         T = scale_warp(S, float(scale), motion.fps).duration

@@ -201,11 +201,13 @@ def detect_contacts(motion, body, h_on=0.03, h_off=0.05, v_on=1.0, v_off=2.0, mi
 
 
 def foot_contacts(motion) -> np.ndarray:
-    """Contact states (F, 4) of the motion as it is, with the default body's soles: what the demo
-    and the benchmarks call a flight (:func:`retime.phases.flights`)."""
-    from .body import default_body
+    """Contact states (F, 4) of the motion's frames exactly as physics detects them (on the motion as it
+    conforms: y up, one floating base, rigid bones; the default body's soles on the smoothed path): what
+    the demo calls a flight (:func:`retime.phases.longest_flight`). Detected on the raw motion, a Z-up
+    file's flight came out seconds away from the one physics reports."""
+    from .dynamics import dynamics_terms
 
-    return detect_contacts(motion, default_body(motion.skeleton, motion=motion))
+    return dynamics_terms(motion, reference=False).contact
 
 
 def read_contacts(path, n_frames: int) -> np.ndarray:

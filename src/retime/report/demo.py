@@ -53,6 +53,14 @@ class DemoResult:
     total_seconds: float
     render_fps: float | None = None
     frame_range: tuple[int, int] | None = None
+    clip_path: Path | None = None  # the file read (the commands in the report name it)
+
+    @property
+    def bundled(self) -> bool:
+        """Whether the clip is one of retime's bundled CMU clips."""
+        from retime.data import CMU_DIR
+
+        return self.clip_path is not None and self.clip_path.resolve().parent == CMU_DIR
 
     @property
     def report_path(self) -> Path:
@@ -79,10 +87,14 @@ def find_clip(name: str = DEFAULT_CLIP) -> Path:
 
 
 def flight_phase(motion) -> tuple[float, float] | None:
-    """(start, end) source times of the longest stretch with no foot on the ground, or None."""
+    """(start, end) source times of the longest stretch with no foot on the ground of the motion as
+    physics sees it (conformed), or None (also when physics cannot conform it: the methods say why)."""
     from retime.physics.contacts import foot_contacts
 
-    return longest_flight(foot_contacts(motion), motion.fps)
+    try:
+        return longest_flight(foot_contacts(motion), np.arange(motion.n_frames) / motion.fps)
+    except RetimeError:
+        return None
 
 
 def flight_speed(curve, flight: tuple[float, float] | None) -> float | None:
@@ -275,7 +287,7 @@ def run_demo(
             bar.update(1)
 
         result = DemoResult(
-            out_dir=out, clip=clip_path.name, frame_range=frames, source_duration=motion.duration, duration=duration, fps=motion.fps,
+            out_dir=out, clip=clip_path.name, clip_path=clip_path, frame_range=frames, source_duration=motion.duration, duration=duration, fps=motion.fps,
             n_frames=motion.n_frames, flight=flight, methods=results, files=files,
             total_seconds=0.0, render_fps=render_fps,
         )

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import html
 import math
+import shlex
 from urllib.parse import quote
 
 from retime.io_util import atomic_write
@@ -90,7 +91,7 @@ def write_report(result, scale: float, video_fps: float) -> None:
     add(f"<style>{CSS}</style></head><body><main>")
 
     add("<header>")
-    add(f"<h1>Retiming CMU {_e(stem)} to {_e(f'{r.duration:.2f}')} s</h1>")
+    add(f"<h1>Retiming {'CMU ' if r.bundled else ''}{_e(stem)} to {_e(f'{r.duration:.2f}')} s</h1>")
     add(f'<p class="lead">A {_e(f"{r.source_duration:.2f}")} s motion-capture clip played in '
         f"{_e(f'{r.duration:.2f}')} s ({_e(f'{100 * r.duration / r.source_duration:.0f}')}% of its length) by "
         f"{len(r.methods)} methods. Timing is judged by eye: watch the jump's flight beside the original.</p>")
@@ -104,7 +105,7 @@ def write_report(result, scale: float, video_fps: float) -> None:
     # what was asked
     add('<section id="asked"><h2>What was asked</h2><dl class="facts">')
     part = f"frames {r.frame_range[0]} to {r.frame_range[1]}: " if r.frame_range else ""
-    add(f"<dt>clip</dt><dd><code>{_e(r.clip)}</code> (CMU motion capture, {part}{r.n_frames} frames at {r.fps:g} Hz, "
+    add(f"<dt>clip</dt><dd><code>{_e(r.clip)}</code> ({'CMU ' if r.bundled else ''}motion capture, {part}{r.n_frames} frames at {r.fps:g} Hz, "
         f"{r.source_duration:.3f} s)</dd>")
     add(f"<dt>target duration</dt><dd>{r.duration:.3f} s (scale {scale:g}, rounded to whole frames at {r.fps:g} Hz)</dd>")
     if r.flight:
@@ -117,8 +118,9 @@ def write_report(result, scale: float, video_fps: float) -> None:
         detail = f" <span class='note'>({_e(m.settings)})</span>" if m.settings else ""
         add(f"<dt>{_e(m.name)}</dt><dd>{_e(desc)}{detail}</dd>")
     add("</dl>")
-    clip_arg = f"src/retime/data/cmu/{r.clip}"
-    cmds = []
+    # the clip where it is (a bundled clip inside the installed package), the outputs beside this report
+    clip_arg = shlex.quote(str(r.clip_path.resolve())) if r.clip_path is not None else shlex.quote(r.clip)
+    cmds = [f"cd {shlex.quote(str(r.out_dir.resolve()))}"]
     for m in r.methods:
         if m.files:
             cmd = f"retime {m.name} {clip_arg} --duration {r.duration:.4f} -o {m.files['bvh']} --warp {m.files['warp']}"
@@ -131,7 +133,7 @@ def write_report(result, scale: float, video_fps: float) -> None:
     cmds.append(f"retime render {clip_arg} {warps} -o compare.mp4")
     cmds.append(f"retime plot {' '.join(m.files['warp'] for m in r.methods if m.files)} -o timing.png")
     if r.frame_range:
-        cmds.insert(0, f"# the demo used source frames {r.frame_range[0]} to {r.frame_range[1]} of the clip")
+        cmds.insert(1, f"# the demo used source frames {r.frame_range[0]} to {r.frame_range[1]} of the clip")
     add('<p class="note" style="margin-top:12px">The same from the command line:</p>')
     add('<pre class="commands">' + "".join(f"<span>{_e(c)}</span>" for c in cmds) + "</pre>")
     add("</section>")
@@ -203,8 +205,8 @@ def write_report(result, scale: float, video_fps: float) -> None:
     add("<footer>")
     add(f"Written by retime {_e(__version__)} in {r.total_seconds:.1f} s"
         + (f" (video rendered and encoded at {r.render_fps:.0f} frames/s)" if r.render_fps else "")
-        + ". Motion data from the CMU Graphics Lab Motion Capture Database (mocap.cs.cmu.edu), created with "
-        "funding from NSF EIA-0196217.")
+        + (". Motion data from the CMU Graphics Lab Motion Capture Database (mocap.cs.cmu.edu), created with "
+           "funding from NSF EIA-0196217." if r.bundled else "."))
     add("</footer></main></body></html>")
     with atomic_write(r.out_dir / "report.html", "w") as f:
         f.write("\n".join(parts) + "\n")
