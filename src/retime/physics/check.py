@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .check_forces import FrameForces, frame_forces
 from .constants import G
 from .plausibility import OFF_RESIDUAL, SourceCheck, check_source, sole_point_velocity
 
@@ -38,6 +39,7 @@ class ClipCheck:
     foot_slide: np.ndarray  # (F,) m/s (0 where no point is in contact)
     verdict: SourceCheck
     notes: list[str] = field(default_factory=list)
+    forces: FrameForces | None = None  # per frame: the feet's contact forces, the residual force, the centre of mass
 
     @property
     def physical(self) -> bool:
@@ -85,7 +87,10 @@ class ClipCheck:
                    "com_accel": [round(float(x), 4) for x in a]}
                   for i, (t, r, e, f, s, a) in enumerate(zip(self.times, self.residual, self.torque_excess, self.flight,
                                                            self.foot_slide, self.com_accel))]
-        return {"summary": self.summary(), "frames": frames}
+        if self.forces is not None:
+            for i, frame in enumerate(frames):
+                frame.update(self.forces.frame(i))
+        return {"summary": self.summary(), "verdict": self.verdict_line(), "frames": frames}
 
     def verdict_line(self) -> str:
         s = self.summary()
@@ -134,7 +139,7 @@ def check_clip(motion, body=None, contacts=None) -> ClipCheck:
     out = ClipCheck(fps=float(motion.fps), times=np.asarray(terms.times)[::spf], residual=residual,
                     torque_excess=_torque_excess(terms), com_accel=_com_accel(terms), flight=~contact.any(axis=1),
                     foot_slide=_foot_slide(terms), verdict=check_source(motion, terms, regions),
-                    notes=list(getattr(terms, "conform_notes", [])))
+                    notes=list(getattr(terms, "conform_notes", [])), forces=frame_forces(motion, terms, regions.body_weight))
     g = out.flight_g
     up_wrong = any("up axis" in c for c in out.verdict.causes)
     if (not out.physical and not up_wrong and g is not None and out.flight.sum() >= 0.1 * motion.fps
