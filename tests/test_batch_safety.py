@@ -42,7 +42,7 @@ def run(argv):
 
 def one_line_error(err: str) -> str:
     lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1 and "Traceback" not in err, err
+    assert len(lines) == 1 and "Traceback" not in err and "Warning" not in err, err
     return lines[0]
 
 
