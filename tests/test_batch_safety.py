@@ -9,6 +9,7 @@ import hashlib
 import io
 import json
 import os
+import select
 import shutil
 import signal
 import subprocess
@@ -25,7 +26,7 @@ from retime.batch.lock import FolderLock
 from retime.cli import main
 from retime.errors import RetimeError
 from retime.io_util import atomic_write
-from test_batch import DATA, RETIME, copies, rows, short_bvh  # noqa: F401 (short_bvh: a fixture)
+from test_batch import DATA, RETIME, _wait_for, copies, rows, short_bvh  # noqa: F401 (short_bvh: a fixture)
 
 
 
@@ -343,3 +344,50 @@ def test_a_stopped_rerun_leaves_a_summary_and_manifest_of_what_is_on_disk(tmp_pa
     # the manifest agrees: a re-run at the new scale skips exactly the new ones
     assert run(argv + ["--scale", "0.8"])[0] == 0
     assert {name for name, r in rows(out).items() if r["status"] == "skipped"} == new
+
+
+# ------------------------------------------------------------------------------ T4, H1: a scheduler
+def test_a_lost_scheduler_is_one_line_and_rows_that_say_so(tmp_path, short_bvh):
+    """H1: waiting on a scheduler with no worker says so; T4: a scheduler that dies mid-batch ends it
+    with exit 1, one line, no Dask tracebacks, and rows of what is on disk."""
+    pytest.importorskip("distributed")
+    folder = copies(short_bvh, tmp_path / "in", 30)
+    out, file = tmp_path / "out", tmp_path / "scheduler.json"
+    logs = open(tmp_path / "dask.log", "wb")
+    scheduler = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+                                  "--port", "0", "--dashboard-address", ":0", "--scheduler-file", str(file)],
+                                 stdout=logs, stderr=logs)
+    processes = [scheduler]
+    try:
+        _wait_for(file.exists, 30, "the scheduler file")
+        address = json.loads(file.read_text())["address"]
+        batch = subprocess.Popen([sys.executable, "-c", RETIME, "batch", str(folder), "-o", str(out), "--method",
+                                  "guided", "--scale", "0.6", "--scheduler", address, "--quiet"],
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        processes.append(batch)
+        assert select.select([batch.stderr], [], [], 60)[0], "no hint while no worker has joined"
+        hint = batch.stderr.readline().decode()
+        assert hint.startswith(f"retime batch: no worker has joined the scheduler at {address} yet"), hint
+        worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
+                                   "--no-nanny", "--dashboard-address", ":0"], stdout=logs, stderr=logs)
+        processes.append(worker)
+        _wait_for(lambda: batch.poll() is not None or any(out.glob("clip*.csv")), 90, "the first finished clip")
+        worker.kill()  # first, so that no clip is written after the batch has read the disk
+        worker.wait()
+        scheduler.kill()
+        _, stderr = batch.communicate(timeout=120)
+    finally:
+        for p in reversed(processes):
+            if p.poll() is None:
+                p.kill()
+            p.wait()
+        logs.close()
+    stderr = stderr.decode()
+    assert batch.returncode == 1, stderr
+    line = one_line_error(stderr)
+    assert line.startswith(f"retime batch: the Dask scheduler at {address} was lost;"), line
+    table = rows(out)
+    done = {name for name, r in table.items() if r["status"] == "done"}
+    assert done == {f"{p.stem}.bvh" for p in out.glob("clip*.csv")} and 0 < len(done) < 30
+    assert {r["error"] for r in table.values() if r["status"] == "failed"} == {
+        f"not run: the Dask scheduler at {address} was lost"}

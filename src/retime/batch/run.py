@@ -11,6 +11,7 @@ import signal
 import sys
 import threading
 import time
+from concurrent.futures import CancelledError
 from pathlib import Path
 
 from ..errors import RetimeError
@@ -193,14 +194,20 @@ class _Stop:
 @contextlib.contextmanager
 def _quiet_dask_logs():
     """The driver's Dask client logs a lost scheduler or a cancelled task as tracebacks; the batch
-    says what happened in its rows and one line."""
-    logger = logging.getLogger("distributed")
-    level = logger.level
-    logger.setLevel(logging.CRITICAL + 1)
+    says what happened in its rows and one line. Dask's config gives its loggers levels of their own
+    (distributed.client: warning), so each is quietened, not only their parent."""
+    import distributed  # noqa: F401 (its loggers exist once it is imported)
+
+    names = [n for n in list(logging.root.manager.loggerDict) if n == "distributed" or n.startswith("distributed.")]
+    loggers = [logging.getLogger(n) for n in names]
+    levels = [logger.level for logger in loggers]
+    for logger in loggers:
+        logger.setLevel(logging.CRITICAL + 1)
     try:
         yield
     finally:
-        logger.setLevel(level)
+        for logger, level in zip(loggers, levels):
+            logger.setLevel(level)
 
 
 def _writable_folders(outputs: list[dict[str, Path]]) -> None:
@@ -260,12 +267,14 @@ def _run_locked(clips, outdir, method, lock, stop, *, gravity_scale, scheduler, 
                      scheduler)
     except KeyboardInterrupt:
         pass
-    except Exception as e:  # e.g. the scheduler gone: say so, and still keep what finished
-        lost = f"{type(e).__name__}: {e}".splitlines()[0]
+    except SchedulerLost as e:
+        lost = str(e)
+    except Exception as e:  # the client failed some other way: say so, and still keep what finished
+        lost = f"the Dask client failed ({type(e).__name__}: {e})".splitlines()[0]
     finally:
         _close(client, cluster)  # a local cluster's workers are gone after this: the disk is final
     if stop.signal is not None or lost is not None:
-        unfinished = "interrupted before it finished" if lost is None else f"not run: the Dask scheduler was lost ({lost})"
+        unfinished = "interrupted before it finished" if lost is None else f"not run: {lost}"
         _read_back_from_disk(clips, outputs, digests, todo, results, manifest, lock.started_ns(), unfinished)
     manifest.method = method
     manifest.save()
@@ -286,8 +295,8 @@ def _run_locked(clips, outdir, method, lock, stop, *, gravity_scale, scheduler, 
         return stop.exit_code
     failed = sum(r["status"] == "failed" for r in rows)
     if lost is not None:
-        print(f"retime batch: the Dask scheduler was lost ({lost}); {failed} of {len(rows)} clips not done "
-              f"(see {outdir / SUMMARY_NAME})", file=sys.stderr)
+        print(f"retime batch: {lost}; {failed} of {len(rows)} clips not done (see {outdir / SUMMARY_NAME})",
+              file=sys.stderr)
         return 1
     if not quiet:
         counts = {s: sum(r["status"] == s for r in rows) for s in ("done", "skipped")}
@@ -322,6 +331,10 @@ def _written_since(path: Path, started_ns: int) -> bool:
         return False
 
 
+class SchedulerLost(Exception):
+    """The scheduler went away mid-batch: the clips not finished by then did not run."""
+
+
 def _compute(client, clips, outputs, digests, todo, results, manifest, method, gravity_scale, quiet, scheduler):
     from distributed import as_completed
     from tqdm import tqdm
@@ -347,6 +360,8 @@ def _compute(client, clips, outputs, digests, todo, results, manifest, method, g
                 i = index_of[future.key]
                 try:
                     result = future.result()
+                except CancelledError:  # not by us (that is a KeyboardInterrupt): the scheduler went away
+                    raise SchedulerLost(f"the Dask scheduler at {scheduler or 'the local cluster'} was lost") from None
                 except Exception as e:  # the task itself failed: a worker died more often than retries
                     result = {"status": "failed", "error": f"{type(e).__name__}: {e}".splitlines()[0], "seconds": None}
                 results[i] = result
