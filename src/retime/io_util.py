@@ -1,7 +1,8 @@
 """Atomic output files: a reader never sees a half-written file, a failure leaves nothing behind.
 
 * :func:`atomic_write` writes a temporary file beside the output and renames it over the output
-  only when the writing succeeded.
+  only when the writing succeeded. An output that is a symlink is written through: the file it
+  points to is replaced (atomically, beside it), never the link itself.
 * :func:`all_or_none` makes a command's outputs one transaction: every :func:`atomic_write` inside
   it only stages its file, and they are renamed into place together at the end (with SIGINT and
   SIGTERM held off for those few renames), or all removed on any failure.
@@ -36,8 +37,24 @@ def check_not_input(output, *inputs):
             raise RetimeError(f"{output}: refusing to overwrite the input file {path}; choose another output path")
 
 
+def write_target(path: Path) -> Path:
+    """The file a write to ``path`` replaces: ``path`` itself, or the file its symlink points to (a
+    rename over the link would replace the link and leave its target as it was)."""
+    if not path.is_symlink():
+        return path
+    target = Path(os.path.realpath(path))
+    if target.is_symlink():  # realpath stops inside a loop
+        raise RetimeError(f"{path}: is a symlink that loops; give a file name for the output")
+    return target
+
+
 def _output_folder(path: Path) -> Path:
     """The folder ``path`` will be written in, checked to exist; ``path`` must not be a folder."""
+    target = write_target(path)
+    if target != path:
+        if not target.parent.is_dir():
+            raise RetimeError(f"{path}: is a symlink to {target}, whose folder does not exist")
+        path = target
     directory = path.parent if str(path.parent) else Path(".")
     if not directory.is_dir():
         raise RetimeError(f"{path}: output folder {directory} does not exist; create it first")
@@ -122,7 +139,7 @@ def _umask() -> int:
 @contextlib.contextmanager
 def atomic_write(path, mode="w", newline=None):
     """Open a temporary file beside ``path``; rename it over ``path`` only if the block succeeds."""
-    path = Path(path)
+    path = write_target(Path(path))
     directory = _output_folder(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
     try:

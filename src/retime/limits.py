@@ -1,6 +1,9 @@
 """Sane ranges and a memory limit: a request that cannot fit is refused up front, in one line.
 
 * Frame rates between :data:`MIN_FPS` (0.001 Hz) and :data:`MAX_FPS` (100,000 Hz).
+* A file's numbers (channel values, offsets, lengths) within :data:`MAX_VALUE` (1e12) in size: no
+  angle or length in any unit is larger, and the arithmetic on them (differences, sums of squares)
+  then stays far from overflowing into inf and NaN.
 * :data:`MEMORY_LIMIT`: the most memory a command may plan to use, ``RETIME_MAX_MEMORY`` (bytes,
   or with a K/M/G/T suffix: ``16G``), by default half the machine's memory (at most 16 GiB). Readers,
   the retiming of a motion and the methods estimate what they will allocate and call
@@ -10,9 +13,12 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
+
 from .errors import RetimeError
 
 MIN_FPS, MAX_FPS = 0.001, 100_000.0
+MAX_VALUE = 1e12
 _SUFFIX = {"k": 2 ** 10, "m": 2 ** 20, "g": 2 ** 30, "t": 2 ** 40}
 
 
@@ -57,3 +63,19 @@ def check_fps(fps: float, what: str = "frame rate") -> float:
     if not (MIN_FPS <= fps <= MAX_FPS):
         raise RetimeError(f"{what} {fps:.6g} Hz is outside {MIN_FPS:g} to {MAX_FPS:,.0f} Hz")
     return float(fps)
+
+
+def number_problem(values) -> str | None:
+    """What is wrong with a file's numbers ('a value that is not finite ...'), or None."""
+    values = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(values)):
+        return "a value that is not finite (NaN or inf)"
+    big = np.abs(values) > MAX_VALUE
+    if big.any():
+        return f"the value {values[big][0]:g}, beyond +-{MAX_VALUE:g} (no angle or length is this large)"
+    return None
+
+
+def numbers_fine(values) -> bool:
+    """All finite and within :data:`MAX_VALUE` (one pass, for a whole file's values)."""
+    return bool(np.all(np.abs(values) <= MAX_VALUE))

@@ -3,13 +3,16 @@ per-clip overrides (duration, scale, keytimes, reference)."""
 from __future__ import annotations
 
 import csv
+import errno
 import math
+import os
 import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path, PurePosixPath
 
 from ..errors import RetimeError
 from ..motion import READABLE
+from .layout import BATCH_FILES, OUTPUT_SUFFIXES
 
 MOTION_SUFFIXES = READABLE  # what the single-clip commands read (FBX and glTF with bpy)
 JOBS_SUFFIXES = (".csv", ".toml")
@@ -28,6 +31,7 @@ class Clip:
     keytimes: tuple[tuple[float, float], ...] = ()
     reference: Path | None = None
     origin: str = ""  # where the clip was named (for error messages): a folder, a jobs file line
+    jobs_file: Path | None = None  # the jobs file naming it, if any
 
     def outputs(self, outdir: Path, method: str) -> dict[str, Path]:
         base = outdir / Path(self.name)
@@ -49,14 +53,17 @@ class Defaults:
     reference: Path | None = None
 
 
-def find_clips(inputs, defaults: Defaults, outdir: Path | None = None) -> list[Clip]:
+def find_clips(inputs, defaults: Defaults, outdir: Path | None = None,
+               skipped: list | None = None) -> list[Clip]:
     """Every clip named by ``inputs``, in order, each with a distinct output name. A folder's walk
-    leaves out ``outdir`` (an output folder inside an input folder must not feed the next run)."""
+    leaves out ``outdir`` (an output folder inside an input folder must not feed the next run), and
+    adds to ``skipped`` what it found but cannot read, as (path, reason)."""
     clips: list[Clip] = []
+    skipped = [] if skipped is None else skipped
     for text in inputs:
         path = Path(text)
         if path.is_dir():
-            clips.extend(_folder_clips(path, defaults, outdir))
+            clips.extend(_folder_clips(path, defaults, outdir, skipped))
         elif not path.exists():
             raise RetimeError(f"{text}: no such file or folder")
         elif path.suffix.lower() in MOTION_SUFFIXES:
@@ -67,14 +74,15 @@ def find_clips(inputs, defaults: Defaults, outdir: Path | None = None) -> list[C
             clips.extend(read_jobs_toml(path, defaults))
         else:
             raise RetimeError(f"{text}: not a motion (.bvh, .amc), a folder or a jobs file (.csv, .toml)")
-    if not clips:
+    if not clips and not skipped:
         raise RetimeError("no clips found: give motion files (.bvh, .amc, or .fbx/.glb/.gltf with bpy), folders holding them, or a jobs file")
     return _distinct_names(clips)
 
 
 def _distinct_names(clips: list[Clip]) -> list[Clip]:
     """X.amc beside X.bvh (a common layout: the capture and its export) write X.amc.bvh and
-    X.bvh.bvh; any other two clips with one output name are refused."""
+    X.bvh.bvh, and so does a clip whose outputs would take a batch file's name (summary.bvh writes
+    summary.bvh.csv, not summary.csv); any other two clips with one output name are refused."""
     def key(name):
         return str(name).lower()  # case-insensitive file systems would merge these too
 
@@ -83,21 +91,39 @@ def _distinct_names(clips: list[Clip]) -> list[Clip]:
         groups.setdefault(key(clip.name), []).append(clip)
     renamed = {}
     for group in groups.values():
-        suffixes = {c.motion.suffix.lower() for c in group}
-        if len(group) > 1 and len(suffixes) == len(group):
+        by_suffix: dict[str, Clip] = {}
+        for c in group:
+            other = by_suffix.setdefault(c.motion.suffix.lower(), c)
+            if other is not c:
+                raise RetimeError(_clash(other, c))
+        if len(group) > 1 or _takes_a_batch_file(group[0].name):
             for c in group:
                 renamed[id(c)] = replace(c, name=c.name.with_name(c.name.name + c.motion.suffix.lower()))
     result = [renamed.get(id(c), c) for c in clips]
     seen: dict[str, Clip] = {}
     for clip in result:
-        if key(clip.name) in seen:
-            raise RetimeError(f"{seen[key(clip.name)].motion} and {clip.motion} would both write {clip.name}.bvh; "
-                              "rename one or give them from different folders")
+        if key(clip.name) in seen:  # e.g. a clip named X.bvh.bvh beside X.bvh and X.amc
+            raise RetimeError(_clash(seen[key(clip.name)], clip))
         seen[key(clip.name)] = clip
     return result
 
 
-def _folder_clips(folder: Path, defaults: Defaults, outdir: Path | None) -> list[Clip]:
+def _takes_a_batch_file(name: PurePosixPath) -> bool:
+    return str(name.parent) == "." and any((name.name + s).lower() in BATCH_FILES for s in OUTPUT_SUFFIXES)
+
+
+def _clash(a: Clip, b: Clip) -> str:
+    if a.origin != b.origin and a.motion.parent != b.motion.parent:
+        advice = ("give one folder that holds both (each keeps its subfolder in OUTDIR), "
+                  "or run them into different output folders")
+    else:
+        advice = "rename one"
+    return f"{a.motion} ({a.origin}) and {b.motion} ({b.origin}) would both write {b.name}.bvh; {advice}"
+
+
+def _folder_clips(folder: Path, defaults: Defaults, outdir: Path | None, skipped: list) -> list[Clip]:
+    """The motion files below ``folder``; what cannot be read (a folder, a dangling or looping
+    symlink) goes to ``skipped`` as (path, reason)."""
     root = folder.resolve()
     skip = outdir.resolve() if outdir is not None else None
     if skip == root:
@@ -105,10 +131,43 @@ def _folder_clips(folder: Path, defaults: Defaults, outdir: Path | None) -> list
                           "(choose another -o)")
     if skip is not None and not skip.is_relative_to(root):
         skip = None  # OUTDIR outside this folder: nothing of it is in the walk
-    found = sorted(p for p in folder.rglob("*") if p.suffix.lower() in MOTION_SUFFIXES and p.is_file()
-                   and not (skip is not None and p.resolve().is_relative_to(skip)))
+
+    def unreadable(e: OSError):
+        skipped.append((e.filename, f"cannot read this folder ({e.strerror}); its clips were not run"))
+
+    found = []
+    for top, dirs, files in os.walk(folder, onerror=unreadable):
+        if skip is not None and Path(top).resolve().is_relative_to(skip):
+            dirs.clear()
+            continue
+        dirs.sort()
+        for name in files:
+            p = Path(top) / name
+            if p.suffix.lower() not in MOTION_SUFFIXES:
+                continue
+            problem = _not_a_file(p)
+            if problem:
+                skipped.append((str(p), problem))
+            else:
+                found.append(p)
     return [_clip(p, PurePosixPath(p.relative_to(folder).with_suffix("").as_posix()), defaults, origin=str(folder))
-            for p in found]
+            for p in sorted(found)]
+
+
+def _not_a_file(path: Path) -> str | None:
+    try:
+        if path.is_file():
+            return None
+    except OSError as e:  # a symlink loop (ELOOP), ...
+        return f"cannot read it ({e.strerror})"
+    if path.is_symlink():
+        try:
+            path.stat()
+        except OSError as e:
+            if e.errno == errno.ELOOP:
+                return "a symlink that loops; not run"
+            return f"a symlink to {os.readlink(path)}, which does not exist; not run"
+    return "not a regular file; not run"
 
 
 def _clip(motion: Path, name: PurePosixPath, defaults: Defaults, origin: str, **overrides) -> Clip:
@@ -144,7 +203,7 @@ def _job_clip(row: dict, where: str, jobs_file: Path, defaults: Defaults) -> Cli
     reference_text = _text(row.get("reference"), "reference", where)
     reference = jobs_file.parent / reference_text if reference_text else None
     return _clip(motion, _job_name(motion, jobs_file), defaults, origin=where, duration=duration, scale=scale,
-                 keytimes=keytimes or None, reference=reference)
+                 keytimes=keytimes or None, reference=reference, jobs_file=jobs_file)
 
 
 def read_jobs_csv(path: Path, defaults: Defaults) -> list[Clip]:
@@ -152,10 +211,18 @@ def read_jobs_csv(path: Path, defaults: Defaults) -> list[Clip]:
         text = path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as e:
         raise RetimeError(f"{path}: cannot read the jobs file: {e}") from None
-    rows = list(csv.reader(text.splitlines()))
+    reader = csv.reader(text.splitlines())
+    try:
+        rows = list(reader)
+    except csv.Error as e:  # e.g. a cell over the csv module's 131,072 characters
+        raise RetimeError(f"{path} line {reader.line_num}: not a readable CSV row ({e}); "
+                          "a jobs file holds paths and numbers") from None
     if not rows or [h.strip().lower() for h in rows[0]][:1] != ["motion"]:
         raise RetimeError(f"{path}: a jobs file starts with a header like 'motion,duration,scale,keytimes,reference'")
     header = [h.strip().lower() for h in rows[0]]
+    twice = sorted({h for h in header if h and header.count(h) > 1})
+    if twice:
+        raise RetimeError(f"{path} line 1: the column {twice[0]!r} is given twice; keep one")
     clips = []
     for lineno, cells in enumerate(rows[1:], start=2):
         if not any(c.strip() for c in cells):
@@ -190,6 +257,8 @@ def _text(value, name, where) -> str | None:
         return None
     if not isinstance(value, str):
         raise RetimeError(f"{where}: {name} must be a text (a path), got {value!r}")
+    if "\0" in value:
+        raise RetimeError(f"{where}: {name} holds a NUL byte; a path cannot")
     return value.strip() or None
 
 
@@ -225,6 +294,50 @@ def parse_keytimes(value, where) -> tuple[tuple[float, float], ...]:
             raise RetimeError(f"{where}: keytime must look like SRC=DST in seconds (e.g. 1.2=0.8), got {item.strip()!r}")
         pairs.append(pair)
     return tuple(pairs)
+
+
+def files_read(motion: Path) -> list[Path]:
+    """The files a motion's load reads: the motion and, for an .amc, the .asf found beside it."""
+    files = [motion]
+    if motion.suffix.lower() == ".amc":
+        from ..motion.asf import find_asf
+
+        try:
+            files.append(find_asf(motion))
+        except Exception:  # no skeleton: the clip will fail and say so
+            pass
+    return files
+
+
+def _file_key(path: Path):
+    try:
+        st = path.stat()
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
+
+
+def check_inputs_kept(clips: list[Clip], outdir: Path, method: str) -> None:
+    """Refuse a batch that would write over one of its inputs: a clip's motion, skeleton or
+    reference, or a jobs file, whatever the layout (by path, symlink or hard link). ``outdir``'s
+    own files count as outputs too."""
+    inputs: dict = {}
+    for clip in clips:
+        named = [(p, f"an input ({clip.origin})") for p in files_read(clip.motion)]
+        if clip.reference is not None:
+            named += [(p, f"a reference ({clip.origin})") for p in files_read(clip.reference)]
+        if clip.jobs_file is not None:
+            named.append((clip.jobs_file, "the jobs file"))
+        for path, what in named:
+            inputs.setdefault(path.resolve(), (path, what))
+            if (k := _file_key(path)) is not None:
+                inputs.setdefault(k, (path, what))
+    outputs = [outdir / name for name in BATCH_FILES]
+    outputs += [p for clip in clips for p in clip.outputs(outdir, method).values()]
+    for output in outputs:
+        hit = inputs.get(output.resolve()) or inputs.get(_file_key(output))
+        if hit is not None:
+            raise RetimeError(f"{output}: would overwrite {hit[1]} {hit[0]}; choose an output folder apart from the inputs")
 
 
 def with_absolute_paths(clip: Clip) -> Clip:

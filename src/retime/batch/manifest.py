@@ -7,24 +7,12 @@ import hashlib
 import json
 from pathlib import Path
 
+from ..errors import RetimeError
 from ..io_util import atomic_write
-from .jobs import Clip
+from .jobs import Clip, files_read
+from .layout import MANIFEST_NAME
 
-MANIFEST_NAME = ".retime-batch.json"
 FORMAT = 1
-
-
-def _files_read(motion: Path) -> list[Path]:
-    """The files a motion's load reads: the motion and, for an .amc, the .asf found beside it."""
-    files = [motion]
-    if motion.suffix.lower() == ".amc":
-        from ..motion.asf import find_asf
-
-        try:
-            files.append(find_asf(motion))
-        except Exception:  # no skeleton: the clip will fail and say so; its hash only has to differ
-            pass
-    return files
 
 
 def clip_hash(clip: Clip, method: str, options: dict) -> str | None:
@@ -33,7 +21,7 @@ def clip_hash(clip: Clip, method: str, options: dict) -> str | None:
     settings = {"method": method, "duration": clip.duration, "scale": clip.scale,
                 "keytimes": [list(k) for k in clip.keytimes], "options": options}
     h.update(json.dumps(settings, sort_keys=True).encode())
-    files = _files_read(clip.motion) + (_files_read(clip.reference) if clip.reference else [])
+    files = files_read(clip.motion) + (files_read(clip.reference) if clip.reference else [])
     for path in files:
         try:
             data = path.read_bytes()
@@ -48,12 +36,21 @@ class Manifest:
     def __init__(self, outdir: Path):
         self.path = outdir / MANIFEST_NAME
         self.clips: dict[str, dict] = {}
+        self.method: str | None = None  # the method whose outputs the folder holds (None: not known)
         try:
             data = json.loads(self.path.read_text(encoding="utf-8"))
             if isinstance(data, dict) and data.get("format") == FORMAT and isinstance(data.get("clips"), dict):
                 self.clips = data["clips"]
+                self.method = data.get("method") if isinstance(data.get("method"), str) else None
         except (OSError, ValueError):  # none yet, or unreadable: every clip runs
             pass
+
+    def check_method(self, method: str) -> None:
+        """Refuse a folder holding another method's outputs: their files share names (a check report
+        would replace a physics report beside its motion) and a summary would mix the two."""
+        if self.clips and self.method is not None and self.method != method:
+            raise RetimeError(f"{self.path.parent}: holds the outputs of a --method {self.method} batch "
+                              f"(see {self.path.name}); write the {method} batch to another folder")
 
     def is_current(self, clip: Clip, digest: str | None, outputs: dict[str, Path]) -> bool:
         entry = self.clips.get(str(clip.name))
@@ -70,6 +67,6 @@ class Manifest:
         self.clips.pop(str(clip.name), None)
 
     def save(self) -> None:
-        text = json.dumps({"format": FORMAT, "clips": self.clips}, indent=1, sort_keys=True)
+        text = json.dumps({"format": FORMAT, "method": self.method, "clips": self.clips}, indent=1, sort_keys=True)
         with atomic_write(self.path) as f:
             f.write(text + "\n")

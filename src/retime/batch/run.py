@@ -7,13 +7,18 @@ import contextlib
 import io
 import logging
 import os
+import signal
 import sys
+import threading
 import time
+from concurrent.futures import CancelledError
 from pathlib import Path
 
 from ..errors import RetimeError
-from .jobs import Clip, with_absolute_paths
+from .jobs import Clip, check_inputs_kept, with_absolute_paths
 from .manifest import Manifest, clip_hash
+from .layout import INDEX_NAME, SUMMARY_NAME
+from .lock import FolderLock
 from .summary import clip_row, read_warp, write_index_html, write_summary_csv
 
 MANIFEST_SAVE_INTERVAL = 1.0  # seconds: often enough for Ctrl-C to keep what finished, rarely enough for 10^4 clips
@@ -56,6 +61,42 @@ def _error_line(stderr: str, returncode) -> str:
     return lines[-1] if lines else f"exit code {returncode}"
 
 
+class _PerThreadStream:
+    """sys.stdout or sys.stderr on a worker: what a task prints goes to that task's own buffer. A
+    worker with several threads runs several clips at once, and contextlib.redirect_stderr swaps
+    the one process-wide stream (clips read each other's errors)."""
+
+    def __init__(self, stream):
+        self.stream = stream
+        self.local = threading.local()
+
+    def write(self, text):
+        return (getattr(self.local, "buffer", None) or self.stream).write(text)
+
+    def flush(self):
+        (getattr(self.local, "buffer", None) or self.stream).flush()
+
+    def __getattr__(self, name):
+        return getattr(self.stream, name)
+
+
+_INSTALL = threading.Lock()
+
+
+@contextlib.contextmanager
+def _captured(name: str):
+    """This thread's prints to sys.<name>, into a buffer (yielded)."""
+    with _INSTALL:
+        if not isinstance(getattr(sys, name), _PerThreadStream):
+            setattr(sys, name, _PerThreadStream(getattr(sys, name)))
+        stream = getattr(sys, name)
+    buffer = stream.local.buffer = io.StringIO()
+    try:
+        yield buffer
+    finally:
+        stream.local.buffer = None
+
+
 def run_clip(argv: list[str]) -> dict:
     """One clip, on a worker: ``retime.cli.main(argv)`` with its output captured. Never raises for
     the clip's own failures; those come back as {'status': 'failed', 'error': one line}."""
@@ -68,9 +109,8 @@ def run_clip(argv: list[str]) -> dict:
     # (6x on this machine); their results do not depend on the thread count. Thread-local, so per task.
     numba.set_num_threads(1)
     start = time.perf_counter()
-    out, err = io.StringIO(), io.StringIO()
     try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        with _captured("stdout"), _captured("stderr") as err:
             try:
                 code = main(argv)
             except SystemExit as e:  # argparse rejecting an option
@@ -96,8 +136,15 @@ def _connect(scheduler: str | None, workers: int | None):
             return Client(scheduler, timeout="20s"), None
         except (OSError, TimeoutError, ValueError) as e:
             raise RetimeError(f"cannot reach the Dask scheduler at {scheduler}: {e}".splitlines()[0]) from None
-    cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                           dashboard_address=":0", silence_logs=logging.ERROR)
+    # the workers start with SIGINT ignored (a disposition that survives exec; a handler would not):
+    # a terminal's Ctrl-C reaches the whole process group, and this process alone stops the batch
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if _on_main_thread() else None
+    try:
+        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                               dashboard_address=":0", silence_logs=logging.ERROR)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
     try:
         return Client(cluster), cluster
     except BaseException:
@@ -112,11 +159,87 @@ def _close(client, cluster) -> None:
                 thing.close()
 
 
+def _on_main_thread() -> bool:
+    return threading.current_thread() is threading.main_thread()
+
+
+class _Stop:
+    """SIGINT and SIGTERM stop the batch: the first raises KeyboardInterrupt where the driver is;
+    later ones are only counted, so that the summary of what is on disk is still written."""
+
+    def __init__(self):
+        self.signal: int | None = None
+        self.previous = {}
+
+    def __enter__(self):
+        if _on_main_thread():
+            for signum in (signal.SIGINT, signal.SIGTERM):
+                self.previous[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def _handle(self, signum, frame):
+        if self.signal is None:
+            self.signal = signum
+            raise KeyboardInterrupt
+
+    def __exit__(self, *exc):
+        for signum, handler in self.previous.items():
+            signal.signal(signum, handler)
+
+    @property
+    def exit_code(self) -> int:
+        return 128 + (self.signal or signal.SIGINT)
+
+
+@contextlib.contextmanager
+def _quiet_dask_logs():
+    """The driver's Dask client logs a lost scheduler or a cancelled task as tracebacks; the batch
+    says what happened in its rows and one line. Dask's config gives its loggers levels of their own
+    (distributed.client: warning), so each is quietened, not only their parent."""
+    import distributed  # noqa: F401 (its loggers exist once it is imported)
+
+    names = [n for n in list(logging.root.manager.loggerDict) if n == "distributed" or n.startswith("distributed.")]
+    loggers = [logging.getLogger(n) for n in names]
+    levels = [logger.level for logger in loggers]
+    for logger in loggers:
+        logger.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        for logger, level in zip(loggers, levels):
+            logger.setLevel(level)
+
+
+def _writable_folders(outputs: list[dict[str, Path]]) -> None:
+    """Every clip's output folder, made and checked writable before any clip runs."""
+    for folder in sorted({p.parent for paths in outputs for p in paths.values()}):
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise RetimeError(f"{folder}: cannot make this output folder ({e.strerror}); choose another -o") from None
+        if not os.access(folder, os.W_OK):
+            raise RetimeError(f"{folder}: cannot write in this output folder (permission denied); choose another -o")
+
+
 def run_batch(clips: list[Clip], outdir: Path, method: str, *, gravity_scale: float | None = None,
               scheduler: str | None = None, workers: int | None = None, force: bool = False,
-              quiet: bool = False) -> int:
+              quiet: bool = False, skipped: tuple[tuple[str, str], ...] = ()) -> int:
+    """Run the clips; ``skipped`` are inputs found but not readable as clips (input, reason), listed
+    as failed rows."""
     outdir = Path(outdir)
+    check_inputs_kept(clips, outdir, method)  # before anything is written
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)  # a bad OUTDIR fails here, before a cluster starts
+    except OSError as e:
+        raise RetimeError(f"{outdir}: cannot make the output folder ({e.strerror}); choose another -o") from None
+    with FolderLock(outdir) as lock, _Stop() as stop, _quiet_dask_logs():
+        return _run_locked(clips, outdir, method, lock, stop, gravity_scale=gravity_scale, scheduler=scheduler,
+                           workers=workers, force=force, quiet=quiet, skipped=skipped)
+
+
+def _run_locked(clips, outdir, method, lock, stop, *, gravity_scale, scheduler, workers, force, quiet, skipped):
     manifest = Manifest(outdir)
+    manifest.check_method(method)
     options = {"gravity_scale": gravity_scale}
     shown = [str(c.motion) for c in clips]  # as the user named them
     clips = [with_absolute_paths(c) for c in clips]
@@ -127,58 +250,92 @@ def run_batch(clips: list[Clip], outdir: Path, method: str, *, gravity_scale: fl
         if not force and manifest.is_current(clip, digests[i], outputs[i]):
             results[i] = {"status": "skipped", "error": "", "seconds": None}
     todo = [i for i in range(len(clips)) if i not in results]
+    _writable_folders([outputs[i] for i in todo])
 
-    outdir.mkdir(parents=True, exist_ok=True)  # a bad OUTDIR fails here, before a cluster starts
     client = cluster = None
     try:
         if todo:  # before any output file: an unreachable scheduler leaves none behind
             client, cluster = _connect(scheduler, workers)
     except KeyboardInterrupt:
-        print("retime batch: interrupted while starting; no output written", file=sys.stderr)
-        return 130
-    unfinished, stopped = "interrupted before it finished", None
-    try:
-        for i in todo:
-            next(iter(outputs[i].values())).parent.mkdir(parents=True, exist_ok=True)
-        if todo:
-            _compute(client, clips, outputs, digests, todo, results, manifest, method, gravity_scale, quiet)
-    except KeyboardInterrupt:
-        stopped = KeyboardInterrupt
-    except Exception as e:  # e.g. the scheduler gone: say so, and still keep what finished
-        stopped = RetimeError(f"the batch stopped: {type(e).__name__}: {e}".splitlines()[0])
-        unfinished = f"not run: {stopped}"
-    finally:
         _close(client, cluster)
-    for i in range(len(clips)):
-        if i not in results:
-            results[i] = {"status": "failed", "error": unfinished, "seconds": None}
+        print("retime batch: interrupted while starting; no output written", file=sys.stderr)
+        return stop.exit_code
+    lost = None
+    try:
+        if todo:
+            _compute(client, clips, outputs, digests, todo, results, manifest, method, gravity_scale, quiet,
+                     scheduler)
+    except KeyboardInterrupt:
+        pass
+    except SchedulerLost as e:
+        lost = str(e)
+    except Exception as e:  # the client failed some other way: say so, and still keep what finished
+        lost = f"the Dask client failed ({type(e).__name__}: {e})".splitlines()[0]
+    finally:
+        _close(client, cluster)  # a local cluster's workers are gone after this: the disk is final
+    if stop.signal is not None or lost is not None:
+        unfinished = "interrupted before it finished" if lost is None else f"not run: {lost}"
+        _read_back_from_disk(clips, outputs, digests, todo, results, manifest, lock.started_ns(), unfinished)
+    manifest.method = method
     manifest.save()
     curves = [read_warp(outputs[i]["warp"]) if results[i]["status"] != "failed" and "warp" in outputs[i] else None
               for i in range(len(clips))]  # each warp file read once, for the row and the page
     rows = [clip_row(shown[i], **results[i], outputs=outputs[i], curve=curves[i]) for i in range(len(clips))]
+    rows += [clip_row(text, "failed", reason, None, {}) for text, reason in skipped]
+    curves += [None] * len(skipped)
     if method == "check":  # the library ranked from least to most physical (failed clips last)
         order = sorted(range(len(rows)), key=lambda i: (rows[i]["status"] == "failed",
                                                         -float(rows[i]["off_share"] or 0.0)))
         rows, curves = [rows[i] for i in order], [curves[i] for i in order]
-    write_summary_csv(rows, outdir / "summary.csv")
-    write_index_html(rows, curves, outdir / "index.html", title=f"retime batch: {method}")
-    if isinstance(stopped, RetimeError):
-        raise stopped
-    if stopped is KeyboardInterrupt:
-        print("retime batch: interrupted; finished clips kept (see summary.csv)", file=sys.stderr)
-        return 130
+    write_summary_csv(rows, outdir / SUMMARY_NAME)
+    write_index_html(rows, curves, outdir / INDEX_NAME, title=f"retime batch: {method}")
+    if stop.signal is not None:
+        how = "interrupted" if stop.signal == signal.SIGINT else "terminated"
+        print(f"retime batch: {how}; finished clips kept (see summary.csv)", file=sys.stderr)
+        return stop.exit_code
     failed = sum(r["status"] == "failed" for r in rows)
+    if lost is not None:
+        print(f"retime batch: {lost}; {failed} of {len(rows)} clips not done (see {outdir / SUMMARY_NAME})",
+              file=sys.stderr)
+        return 1
     if not quiet:
         counts = {s: sum(r["status"] == s for r in rows) for s in ("done", "skipped")}
-        print(f"wrote {outdir / 'summary.csv'} and index.html: {counts['done']} done, {counts['skipped']} skipped, "
+        print(f"wrote {outdir / SUMMARY_NAME} and index.html: {counts['done']} done, {counts['skipped']} skipped, "
               f"{failed} failed")
     if failed:
-        print(f"{failed} of {len(rows)} clips failed (see {outdir / 'summary.csv'})", file=sys.stderr)
+        print(f"{failed} of {len(rows)} clips failed (see {outdir / SUMMARY_NAME})", file=sys.stderr)
         return 1
     return 0
 
 
-def _compute(client, clips, outputs, digests, todo, results, manifest, method, gravity_scale, quiet):
+def _read_back_from_disk(clips, outputs, digests, todo, results, manifest, started_ns, unfinished) -> None:
+    """After a stop, the clips whose results never came back: a clip whose every output was written
+    during this run finished (its worker wrote them as one transaction) and is recorded; any
+    other is unfinished, and its manifest entry, if any, still describes the older outputs there."""
+    for i in todo:
+        if i in results:
+            continue
+        if all(_written_since(p, started_ns) for p in outputs[i].values()):
+            results[i] = {"status": "done", "error": "", "seconds": None}
+            manifest.record(clips[i], digests[i], 0.0)
+        else:
+            older = any(p.exists() for p in outputs[i].values())
+            results[i] = {"status": "failed", "seconds": None,
+                          "error": unfinished + ("; the outputs there are from an earlier run" if older else "")}
+
+
+def _written_since(path: Path, started_ns: int) -> bool:
+    try:
+        return path.stat().st_mtime_ns >= started_ns
+    except OSError:
+        return False
+
+
+class SchedulerLost(Exception):
+    """The scheduler went away mid-batch: the clips not finished by then did not run."""
+
+
+def _compute(client, clips, outputs, digests, todo, results, manifest, method, gravity_scale, quiet, scheduler):
     from distributed import as_completed
     from tqdm import tqdm
 
@@ -186,6 +343,9 @@ def _compute(client, clips, outputs, digests, todo, results, manifest, method, g
     try:
         if not quiet:
             print(f"dashboard: {client.dashboard_link}", flush=True)
+        if scheduler and not client.scheduler_info().get("workers"):
+            print(f"retime batch: no worker has joined the scheduler at {scheduler} yet; waiting "
+                  f"(start one with: dask worker {scheduler})", file=sys.stderr, flush=True)
         client.run(prepare_worker)
         index_of = {}
         for i in todo:
@@ -200,6 +360,8 @@ def _compute(client, clips, outputs, digests, todo, results, manifest, method, g
                 i = index_of[future.key]
                 try:
                     result = future.result()
+                except CancelledError:  # not by us (that is a KeyboardInterrupt): the scheduler went away
+                    raise SchedulerLost(f"the Dask scheduler at {scheduler or 'the local cluster'} was lost") from None
                 except Exception as e:  # the task itself failed: a worker died more often than retries
                     result = {"status": "failed", "error": f"{type(e).__name__}: {e}".splitlines()[0], "seconds": None}
                 results[i] = result
@@ -213,7 +375,7 @@ def _compute(client, clips, outputs, digests, todo, results, manifest, method, g
                 if time.monotonic() - last_save >= MANIFEST_SAVE_INTERVAL:
                     manifest.save()
                     last_save = time.monotonic()
-    except KeyboardInterrupt:
+    except BaseException:
         with contextlib.suppress(Exception):
             client.cancel([f for f in futures if not f.done()])
         raise

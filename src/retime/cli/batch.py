@@ -62,7 +62,8 @@ def run(args):
         raise RetimeError(f"{outdir}: exists and is not a folder")
     defaults = Defaults(duration=args.duration, scale=args.scale, keytimes=tuple(args.keytime),
                         reference=Path(args.reference) if args.reference else None)
-    clips = find_clips(args.inputs, defaults, outdir=outdir)
+    skipped: list[tuple[str, str]] = []
+    clips = find_clips(args.inputs, defaults, outdir=outdir, skipped=skipped)
     for clip in clips:
         if clip.reference is not None and args.method != "guided":
             raise RetimeError(f"{clip.origin}: a reference is for --method guided")
@@ -70,4 +71,4 @@ def run(args):
             raise RetimeError(f"{clip.origin}: say how to retime {clip.motion}: --duration SEC, --scale X, "
                               "--keytime SRC=DST or a jobs file's columns")
     return run_batch(clips, outdir, args.method, gravity_scale=args.gravity_scale, scheduler=args.scheduler,
-                     workers=args.workers, force=args.force, quiet=args.quiet)
+                     workers=args.workers, force=args.force, quiet=args.quiet, skipped=tuple(skipped))

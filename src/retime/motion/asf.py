@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError
+from ..limits import number_problem, numbers_fine
 from .bvh import read_text
 from .model import Motion, Skeleton
 from .quat import euler_to_quat, qconj, qmul
@@ -174,8 +175,9 @@ def _numbers(path, tokens, count, lineno, what):
         raise FormatError(path, f"{what} holds a value that is not a number", lineno) from None
     if vals.size != count:
         raise FormatError(path, f"{what} needs {count} number{'s' if count > 1 else ''}, found {vals.size}", lineno)
-    if not np.all(np.isfinite(vals)):
-        raise FormatError(path, f"{what} holds a value that is not finite (NaN or inf)", lineno)
+    problem = number_problem(vals)
+    if problem:
+        raise FormatError(path, f"{what} holds {problem}", lineno)
     return vals
 
 
@@ -366,7 +368,7 @@ def _parse_amc_fast(body_text, dof_count, expected):
         vals = np.array(table[:, value_cols].ravel().tolist(), dtype=float).reshape(len(table), len(value_cols))
     except ValueError:
         return None
-    if not np.all(np.isfinite(vals)):
+    if not numbers_fine(vals):
         return None
     out, col = {}, 0
     for name, c in layout:
@@ -398,8 +400,9 @@ def _parse_amc_slow(path, body, bounds, dof_count, expected, info):
                 vals = np.array([float(t) for t in tokens[1:]])
             except ValueError:
                 raise FormatError(path, f"frame {number}: bone {name!r} holds a value that is not a number", lineno) from None
-            if not np.all(np.isfinite(vals)):
-                raise FormatError(path, f"frame {number}: bone {name!r} holds a value that is not finite (NaN or inf)", lineno)
+            problem = number_problem(vals)
+            if problem:
+                raise FormatError(path, f"frame {number}: bone {name!r} holds {problem}", lineno)
             if dof_count[name]:
                 out[name][f] = vals
             seen.add(name)

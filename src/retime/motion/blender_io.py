@@ -82,13 +82,17 @@ def require_bpy(path):
     return command
 
 
-def _run_bridge(path, *args):
+def _run_bridge(path, *args, produces=()):
+    """Run the bridge on ``args``; it must exit 0 and leave every file in ``produces``."""
     command = require_bpy(path)
     try:
         done = subprocess.run([*command, *map(str, args)], capture_output=True, text=True, errors="replace")
     except OSError as e:
         raise RetimeError(f"cannot run {command[0]}: {e.strerror}; check RETIME_BPY_PYTHON or your Blender") from None
     if done.returncode == 0:
+        if not all(Path(p).is_file() for p in produces):  # exit 0 is not proof: e.g. RETIME_BPY_PYTHON=/bin/true
+            raise FormatError(path, f"{command[0]} exited without error but wrote nothing; "
+                                    "is it Blender or a Python with bpy (RETIME_BPY_PYTHON)?")
         return
     lines = done.stderr.strip().splitlines()
     said = [ln[len(_ERROR_PREFIX):] for ln in lines if ln.startswith(_ERROR_PREFIX)]
@@ -110,7 +114,7 @@ def read_scene(path):
         raise FormatError(path, "file not found" if not path.exists() else "is not a file")
     with tempfile.TemporaryDirectory(prefix="retime-bpy-") as tmp:
         bvh, meta_path = Path(tmp) / "motion.bvh", Path(tmp) / "motion.json"
-        _run_bridge(path, "read", path.resolve(), bvh, meta_path)
+        _run_bridge(path, "read", path.resolve(), bvh, meta_path, produces=(bvh, meta_path))
         meta = json.loads(meta_path.read_text())
         motion = read_bvh(bvh, fps=meta["fps"], angles="deg")
     motion.skeleton.source = str(path)
@@ -134,7 +138,8 @@ def write_scene(motion, path, source=None):
         out_dir = Path(tmp) / "out"
         out_dir.mkdir()
         staged = out_dir / f"{path.stem}{suffix}"
-        _run_bridge(path, "write", Path(source).resolve() if scene_source else "motion.bvh", poses, staged)
+        _run_bridge(path, "write", Path(source).resolve() if scene_source else "motion.bvh", poses, staged,
+                    produces=(staged,))
         for produced in sorted(out_dir.iterdir()):  # a .gltf comes with its .bin (and any textures)
             name = path.name if produced == staged else produced.name
             with atomic_write(path.with_name(name), "wb") as f:

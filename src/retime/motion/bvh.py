@@ -14,6 +14,7 @@ import numpy as np
 
 from ..errors import FormatError
 from ..io_util import atomic_write
+from ..limits import number_problem, numbers_fine
 from .fk import rest_height
 from .model import POSITION_CHANNELS, ROTATION_CHANNELS, Motion, Skeleton, guess_meters_per_unit
 from .quat import continuous, euler_to_quat, quat_to_euler
@@ -159,8 +160,9 @@ def _floats(path, tokens, lineno, what):
         vals = np.array([float(t) for t in tokens])
     except ValueError:
         raise FormatError(path, f"{what} holds a value that is not a number", lineno) from None
-    if not np.all(np.isfinite(vals)):
-        raise FormatError(path, f"{what} holds a value that is not finite (NaN or inf)", lineno)
+    problem = number_problem(vals)
+    if problem:
+        raise FormatError(path, f"{what} holds {problem}", lineno)
     return vals
 
 
@@ -265,7 +267,7 @@ def _parse_frames(path, data_lines, n_channels):
         values = np.array(rows, dtype=float).reshape(len(rows), n_channels)
     except ValueError:
         values = None
-    if values is not None and np.all(np.isfinite(values)):
+    if values is not None and numbers_fine(values):
         return values
     for f, (lineno, line) in enumerate(data_lines):  # find and name the bad line
         _floats(path, line.split(), lineno, f"frame {f + 1}")

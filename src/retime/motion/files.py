@@ -3,6 +3,8 @@ axis and units detected on every read."""
 import contextlib
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import FormatError, RetimeError
 from ..limits import check_fps, check_memory
 from .asf import read_amc
@@ -77,6 +79,9 @@ def save_motion(motion: Motion, path, source=None) -> None:
     """Write ``motion`` as BVH, FBX or glTF by ``path``'s suffix, atomically. FBX and glTF go through
     Blender (:func:`.blender_io.write_scene`): an FBX or glTF ``source`` keeps its meshes, skins and materials."""
     suffix = Path(path).suffix.lower()
+    if not (np.all(np.isfinite(motion.rotations)) and np.all(np.isfinite(motion.translations))):
+        raise RetimeError(f"{path}: the motion to write holds values that are not finite (NaN or inf), from "
+                          f"overflow on its input's numbers ({source or 'the input'}); nothing written")
     if suffix == ".bvh":
         return write_bvh(motion, path)
     if suffix in SCENE_SUFFIXES:
