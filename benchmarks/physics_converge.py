@@ -7,6 +7,9 @@ whether its stopping test was met, the KKT residual (:func:`retime.physics.optim
 both final objectives, and how many spline coefficients the answer sits on a **kink** of the
 objective for (the one-sided derivatives along the coefficient differ, and keep differing as the step
 shrinks): a minimum on a kink has no vanishing gradient, and which kink wins can be decided by noise.
+``--starts N`` also re-runs the optimizer on the original from N starts that differ from its own by
+1e-6 (relative, random) and prints how far their answers spread: nearby minima, or stops, that
+noise picks between.
 
     python3 benchmarks/physics_converge.py                      # the bundled CMU clips
     python3 benchmarks/physics_converge.py CLIP.amc ... --method lbfgs
@@ -24,7 +27,9 @@ import numpy as np
 from retime.motion import load_motion
 from retime.motion.files import save_motion
 from retime.physics.api import physics_warp
+from retime.physics.api import make_problem
 from retime.physics.objective import evaluate_c
+from retime.physics.optimize import solve
 
 BUNDLED = Path(__file__).resolve().parents[1] / "src" / "retime" / "data" / "cmu"
 
@@ -60,6 +65,22 @@ def kinks(problem, w):
     return count
 
 
+def spread_of_starts(result, motion, duration, n, seed=0):
+    """(largest distance between the answers' timing curves in source frames, objectives' range) of n
+    runs from the start perturbed by 1e-6 (relative)."""
+    rng = np.random.default_rng(seed)
+    pr = make_problem(result.objective, motion.duration, duration)
+    w0 = pr.spline.w.copy()
+    t = np.arange(0.0, duration, 1.0 / motion.fps)
+    curves, vals = [], []
+    for _ in range(n):
+        w, info = solve(pr, w0 * (1 + 1e-6 * rng.standard_normal(len(w0))), max_iter=3000, tol=1e-9)
+        curves.append(pr.spline(t, w))
+        vals.append(info.objective)
+    far = max(float(np.max(np.abs(a - b))) for a in curves for b in curves) * motion.fps
+    return far, min(vals), max(vals)
+
+
 def run(path, scale, kw, tmp):
     src = Path(tmp) / "orig.bvh"
     save_motion(load_motion(path), src)
@@ -75,7 +96,7 @@ def run(path, scale, kw, tmp):
     T = min(a.spline.duration, b.spline.duration)
     t = np.arange(0.0, T, 1.0 / m.fps)
     moved = float(np.max(np.abs(a.curve(t) - b.curve(t)))) * m.fps
-    return moved, a.info, b.info, ta + tb, kinks(a.session.problem, a.spline.w)
+    return moved, a.info, b.info, ta + tb, kinks(a.session.problem, a.spline.w), (m, a)
 
 
 def main(argv=None):
@@ -83,6 +104,7 @@ def main(argv=None):
     ap.add_argument("clips", nargs="*")
     ap.add_argument("--scale", type=float, default=0.5)
     ap.add_argument("--method", default=None, help="optimizer (default: physics' own)")
+    ap.add_argument("--starts", type=int, default=0, help="also this many runs from perturbed starts")
     args = ap.parse_args(argv)
     clips = args.clips or sorted(str(p) for p in BUNDLED.glob("*") if p.suffix in (".amc", ".bvh"))
     kw = {} if args.method is None else {"method": args.method}
@@ -91,13 +113,17 @@ def main(argv=None):
     for c in clips:
         with tempfile.TemporaryDirectory() as tmp:
             try:
-                moved, ia, ib, sec, nk = run(c, args.scale, kw, tmp)
+                moved, ia, ib, sec, nk, (m, a) = run(c, args.scale, kw, tmp)
             except Exception as e:  # a clip physics refuses: say so, go on
                 print(f"{Path(c).name:14s} refused: {str(e).splitlines()[0][:80]}")
                 continue
         print(f"{Path(c).name:14s} {moved:6.3f} {ia.iterations:5d}/{ib.iterations:5d} {ia.converged:d}/{ib.converged:d} "
               f"{ia.kkt_residual:8.2g}/{ib.kkt_residual:8.2g} {nk:5d} {ia.objective:12.7g}/{ib.objective:12.7g}  "
               f"{ia.message} | {ib.message}  ({sec:.0f} s)", flush=True)
+        if args.starts:
+            far, lo, hi = spread_of_starts(a, m, a.spline.duration, args.starts)
+            print(f"{'':14s} {args.starts} starts 1e-6 apart: answers up to {far:.3f} source frames apart, "
+                  f"objective {lo:.7g} .. {hi:.7g}", flush=True)
     return 0
 
 
