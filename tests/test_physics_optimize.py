@@ -154,6 +154,60 @@ def test_session_move_lock_add_remove(quarter_jump):
     assert curve.duration == pytest.approx(S) and np.all(np.diff(curve(t)) >= 0)
 
 
+def _kkt_by_differences(pr, w, h=1e-7):
+    """The KKT residual of optimize.kkt_residual computed independently: central differences of E
+    along each w_k, the bounds' sign rule, least-squares keytime multipliers, relative to |E|."""
+    E = pr.value(w)
+    g = np.empty(len(w))
+    for k in range(len(w)):
+        e = np.zeros(len(w))
+        e[k] = h * w[k]
+        g[k] = (pr.value(w + e) - pr.value(w - e)) / (2 * h * w[k])
+    free = ~(((w <= pr.w_min * (1 + 1e-9)) & (g > 0)) | ((w >= pr.w_max * (1 - 1e-9)) & (g < 0)))
+    if pr.n_eq:
+        J = pr.eq(w)[1]
+        g = g + J.T @ np.linalg.lstsq(J[:, free].T, -g[free], rcond=None)[0]
+    return float(np.max(np.where(free, np.abs(g) * w, 0.0))) / abs(E)
+
+
+@pytest.mark.parametrize("keytimes", [(), [(1.8, 1.5), (2.4, 2.6)]])
+def test_kkt_residual_is_the_relative_projected_gradient(quarter_jump, keytimes):
+    """The optimizer block's residual: at the start and at the answer it agrees with finite differences
+    of the objective; with keytimes it is the Lagrangian's (the objective's own gradient does not
+    vanish at a constrained optimum)."""
+    from retime.physics.optimize import kkt_residual
+
+    pd, rs, obj = quarter_jump
+    S = pd.times[-1]
+    pr = make_problem(obj, S, S, keytimes=keytimes)
+    w0 = pr.spline.w.copy()
+    w, info = solve(pr, max_iter=3000)
+    for x in (w0, w):
+        val, r = kkt_residual(pr, x)
+        assert val == pytest.approx(pr.value(x), rel=1e-12)
+        assert r == pytest.approx(_kkt_by_differences(pr, x), rel=2e-3, abs=1e-6)
+    assert info.kkt_residual == pytest.approx(kkt_residual(pr, w)[1], rel=1e-12)
+    assert info.kkt_residual < kkt_residual(pr, w0)[1]
+    if keytimes:  # without multipliers the residual is the objective's gradient: far larger
+        g = np.abs(pr.fun(w)[1] - pr.gauge * pr.spline.gauge(w)[1]) * w
+        assert np.max(g) / info.objective > 10 * info.kkt_residual
+
+
+def test_report_says_why_the_optimizer_stopped(quarter_jump):
+    from retime.physics.report import build_report
+
+    pd, rs, obj = quarter_jump
+    S = pd.times[-1]
+    pr = make_problem(obj, S, None)
+    for max_iter, why in ((5, "iteration limit"), (3000, "objective gained less than tol")):
+        w, info = solve(pr, max_iter=max_iter)
+        pr.spline.w = w
+        block = build_report(pr.spline, pd, rs, 120.0, info=info)["summary"]["optimizer"]
+        assert block["stopped"].startswith(why) and block["converged"] == (max_iter > 5)
+        assert block["kkt_residual"] == info.kkt_residual and np.isfinite(info.kkt_residual)
+        assert block["iterations"] == info.iterations
+
+
 def test_bad_keytimes_are_refused():
     from retime.errors import RetimeError
     from retime.warp import check_keytimes

@@ -80,5 +80,6 @@ def solve(motion, request: Request) -> Result:
     info = result.info
     solver = {"optimizer": info.method, "objective": info.objective, "iterations": info.iterations,
               "evaluations": info.evaluations, "converged": bool(info.converged),
-              "constraint_violation": info.constraint_violation, "seconds": info.seconds}
+              "constraint_violation": info.constraint_violation, "seconds": info.seconds,
+              "stopped": info.message, "kkt_residual": info.kkt_residual}
     return Result(result.curve, Report(summary, result.report["frames"]), info=solver, detail=result)

@@ -77,7 +77,8 @@ def build_report(spline, pd, regions, fps, tol=IN_REGION_TOL, info=None, extra=N
     if info is not None:
         summary["optimizer"] = {"method": info.method, "objective": info.objective, "iterations": info.iterations,
                                 "evaluations": info.evaluations, "seconds": round(info.seconds, 4),
-                                "constraint_violation": info.constraint_violation, "converged": info.converged}
+                                "constraint_violation": info.constraint_violation, "converged": info.converged,
+                                "stopped": info.message, "kkt_residual": info.kkt_residual}
     if extra:
         summary.update(extra)
     return {"summary": summary, "frames": frames}
