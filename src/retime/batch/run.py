@@ -161,7 +161,8 @@ def run_batch(clips: list[Clip], outdir: Path, method: str, *, gravity_scale: fl
                                                         -float(rows[i]["off_share"] or 0.0)))
         rows, curves = [rows[i] for i in order], [curves[i] for i in order]
     write_summary_csv(rows, outdir / "summary.csv")
-    write_index_html(rows, curves, outdir / "index.html", title=f"retime batch: {method}")
+    plots = [outputs[i].get("plot") for i in order] if method == "check" else None
+    write_index_html(rows, curves, outdir / "index.html", title=f"retime batch: {method}", method=method, plots=plots)
     if isinstance(stopped, RetimeError):
         raise stopped
     if stopped is KeyboardInterrupt:
