@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -320,4 +321,11 @@ def test_check_batch_ranks_the_library_from_least_to_most_physical(tmp_path):
     assert [r["source_physical"] for r in table[:2]] == ["false", "true"]
     assert float(table[0]["off_share"]) > float(table[1]["off_share"])
     assert (out / "fast.json").is_file() and (out / "fast.png").is_file() and not (out / "fast.bvh").exists()
+    # the page: no column that no clip fills (no curves, durations or flights), a caption about the verdict,
+    # and each clip's plot linked with a thumbnail
+    page = (out / "index.html").read_text()
+    headers = re.findall(r"<th>(.*?)</th>", page)
+    assert headers == ["input", "status", "error", "source physical", "off share", "seconds", "plot"]
+    assert "least to most physical" in page and "Timing:" not in page and "<svg" not in page
+    assert re.findall(r'<a href="([^"]+)"><img src="\1"', page) == ["fast.png", "jump.png"]
     assert exit_code(["batch", str(folder), "-o", str(out), "--method", "check", "--scale", "0.5"]) == 2

@@ -57,6 +57,29 @@ def test_double_speed_is_not_physical(capsys, jump_bvh, tmp_path):
     assert (tmp_path / "p.png").stat().st_size > 10_000
 
 
+def test_the_plot_shows_the_worst_frame_and_names_the_file(capsys, jump_bvh, tmp_path, monkeypatch):
+    """16_06's worst frame is 2.24 body weights: the plot's 99th-percentile scale (1.59) cut it off
+    unlabelled, and its title was the whole absolute path."""
+    import numpy as np
+
+    from retime.viz import check as check_plot
+
+    figures = []
+    real = check_plot.check_figure
+    monkeypatch.setattr(check_plot, "check_figure", lambda c, title="": figures.append((c, real(c, title))) or figures[-1][1])
+    assert _check(capsys, jump_bvh.resolve(), "--plot", tmp_path / "p.png")[0] == 0
+    (result, fig), = figures
+    ax = fig.axes[0]
+    worst = int(np.argmax(result.residual))
+    assert result.residual[worst] > np.percentile(result.residual, 99) * 1.15  # what the old scale cut off
+    assert ax.get_ylim()[1] > result.residual[worst]
+    labels = [t.get_text() for t in ax.texts]
+    assert f"frame {worst}: {result.residual[worst]:.2f}" in labels
+    title = ax.get_title(loc="left")
+    assert title.startswith("jump.bvh: ") and str(jump_bvh.parent) not in title
+    assert (tmp_path / "p.png").stat().st_size > 10_000
+
+
 def test_bad_input_is_exit_2(capsys, tmp_path):
     bad = tmp_path / "bad.bvh"
     bad.write_text("HIERARCHY\nROOT a\n{\n")

@@ -288,7 +288,9 @@ def _run_locked(clips, outdir, method, lock, stop, *, gravity_scale, scheduler, 
                                                         -float(rows[i]["off_share"] or 0.0)))
         rows, curves = [rows[i] for i in order], [curves[i] for i in order]
     write_summary_csv(rows, outdir / SUMMARY_NAME)
-    write_index_html(rows, curves, outdir / INDEX_NAME, title=f"retime batch: {method}")
+    # the skipped inputs' rows follow the clips' and have no plot
+    plots = [outputs[i].get("plot") if i < len(outputs) else None for i in order] if method == "check" else None
+    write_index_html(rows, curves, outdir / INDEX_NAME, title=f"retime batch: {method}", method=method, plots=plots)
     if stop.signal is not None:
         how = "interrupted" if stop.signal == signal.SIGINT else "terminated"
         print(f"retime batch: {how}; finished clips kept (see summary.csv)", file=sys.stderr)

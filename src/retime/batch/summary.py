@@ -6,7 +6,9 @@ import csv
 import html
 import io
 import json
+import os
 from pathlib import Path
+from urllib.parse import quote
 
 from ..io_util import atomic_write
 
@@ -99,26 +101,84 @@ document.querySelectorAll('th').forEach((th, col) => th.addEventListener('click'
 """
 
 
-def write_index_html(rows: list[dict], curves: list, path: Path, title: str) -> None:
-    """A self-contained page: no network, a few lines of script to sort by any column."""
+SHOWN_SPEEDS = 3  # flight speeds listed in a cell; more are summarised (a cell of 12 pushed the curves off-screen)
+
+
+def speeds_cell(text: str) -> tuple[str, str]:
+    """(what the page shows, its tooltip) for a row's ``a;b;c`` flight speeds."""
+    speeds = [float(v) for v in text.split(";") if v]
+    if len(speeds) <= SHOWN_SPEEDS:
+        return ", ".join(f"{v:.3g}" for v in speeds), ""
+    return (f"{len(speeds)} flights: {min(speeds):.3g}-{max(speeds):.3g} (median {sorted(speeds)[len(speeds) // 2]:.3g})",
+            ", ".join(f"{v:.3g}" for v in speeds))
+
+
+def row_warning(row: dict, points=None) -> str:
+    """What the command line said about a clip, for its row: a duration below its least physical one by more
+    than half an output frame (``points``: its warp, a row per output frame)."""
+    try:
+        duration, least = float(row["output_duration"]), float(row["least_duration"])
+    except (KeyError, ValueError):
+        return ""
+    half_frame = 0.5 * duration / (len(points) - 1) if points and len(points) > 1 else 0.0
+    if duration >= least - half_frame:
+        return ""
+    feasible = f"; {float(row['feasible_fraction']):.0%} of frames feasible" if row.get("feasible_fraction") else ""
+    return f"below its least physical duration {least:.3f} s{feasible}"
+
+
+def _caption(method: str | None, timing: bool, plots: bool) -> str:
+    if method == "check":
+        return ("Ranked from least to most physical as captured: source physical is the verdict of retime check, "
+                "off share the share of frames the clip's own timing cannot carry. "
+                + ("Each plot opens at full size. " if plots else "") + "Click a column to sort.")
+    return "Click a column to sort." + (" Timing: source time against output time; dashed, the uniform timing."
+                                        if timing else "")
+
+
+def write_index_html(rows: list[dict], curves: list, path: Path, title: str, method: str | None = None,
+                     plots: list | None = None) -> None:
+    """A self-contained page: no network, a few lines of script to sort by any column. Columns no clip fills
+    are left out; ``plots``: each clip's plot image (``retime check --plot``), linked with a thumbnail."""
     e = html.escape
-    head = "".join(f"<th>{e(c.replace('_', ' '))}</th>" for c in COLUMNS) + "<th>timing</th>"
+    columns = [c for c in COLUMNS if c in ("input", "status") or any(str(r[c]) for r in rows)]
+    timing = any(curves)
+    plots = [p if p is not None and Path(p).is_file() else None for p in (plots or [None] * len(rows))]
+    show_plots = any(plots)
+    head = "".join(f"<th>{e(c.replace('_', ' '))}</th>" for c in columns) + ("<th>timing</th>" if timing else "") \
+        + ("<th>plot</th>" if show_plots else "")
     body = []
-    for row, points in zip(rows, curves):
-        cells = "".join(f"<td>{e(str(row[c]))}</td>" for c in COLUMNS)
-        body.append(f'<tr class="{e(row["status"])}">{cells}<td>{curve_svg(points)}</td></tr>')
+    for row, points, plot in zip(rows, curves, plots):
+        warning = row_warning(row, points)
+        cells = []
+        for c in columns:
+            text, tip = speeds_cell(str(row[c])) if c == "flight_speeds" else (str(row[c]), "")
+            more = f'<div class="warning">{e(warning)}</div>' if c == "status" and warning else ""
+            tooltip = f' title="{e(tip)}"' if tip else ""
+            cells.append(f"<td{tooltip}>{e(text)}{more}</td>")
+        if timing:
+            cells.append(f"<td>{curve_svg(points)}</td>")
+        if show_plots:
+            href = e(quote(Path(os.path.relpath(plot, path.parent)).as_posix())) if plot else ""
+            cells.append(f'<td><a href="{href}"><img src="{href}" alt="check plot" width="180" loading="lazy"></a></td>'
+                         if plot else "<td></td>")
+        body.append(f'<tr class="{e(row["status"])}{" warn" if warning else ""}">{"".join(cells)}</tr>')
     counts = {s: sum(r["status"] == s for r in rows) for s in ("done", "skipped", "failed")}
+    warned = sum(bool(row_warning(r, points)) for r, points in zip(rows, curves))
+    tally = f"{counts['done']} done, {counts['skipped']} skipped, {counts['failed']} failed" \
+        + (f", {warned} with a warning" if warned else "")
     page = f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>{e(title)}</title>
 <style>
 body{{font:14px system-ui,sans-serif;margin:1.5em}} table{{border-collapse:collapse}}
 th,td{{border:1px solid #ddd;padding:3px 6px;text-align:left;vertical-align:middle}}
 th{{cursor:pointer;background:#f4f4f4;user-select:none}} tr.failed td{{background:#fff0f0}}
-tr.skipped td{{color:#666}}
+tr.skipped td{{color:#666}} tr.warn td{{background:#fff8e1}} .warning{{color:#9a6700;font-size:12px;max-width:22em}}
+td img{{display:block}}
 </style></head><body>
 <h1>{e(title)}</h1>
-<p>{len(rows)} clips: {counts['done']} done, {counts['skipped']} skipped, {counts['failed']} failed.
-Click a column to sort. Timing: source time against output time; dashed, the uniform timing.</p>
+<p>{len(rows)} clips: {tally}.
+{e(_caption(method, timing, show_plots))}</p>
 <table><thead><tr>{head}</tr></thead><tbody>
 {chr(10).join(body)}
 </tbody></table>

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from ..errors import RetimeError
 from ..io_util import check_outputs
@@ -50,5 +51,5 @@ def run(args):
     if args.plot:
         from ..viz.check import plot_check
 
-        plot_check(result, args.plot, title=args.motion)
+        plot_check(result, args.plot, title=Path(args.motion).name)  # the file, not the whole path
     return 0 if result.physical else 1
