@@ -33,6 +33,22 @@ def _session(client):
     return client.post("/api/session", json={}).json()["session"]
 
 
+def _live(url):
+    """A new session's live websocket."""
+    with httpx.Client(base_url=url, timeout=20) as client:
+        sid = _session(client)
+    return ws_client.connect(url.replace("http", "ws") + f"/api/session/{sid}/live",
+                             additional_headers={"Origin": url}, max_size=None)
+
+
+def _final_duration(ws, seq):
+    """The duration of the final solution answering edit ``seq``."""
+    while True:
+        msg = json.loads(ws.recv(timeout=30))
+        if msg["type"] == "solution" and msg.get("seq") == seq and msg["final"]:
+            return msg["duration"]
+
+
 @pytest.mark.parametrize("body", [{"ops": [{"op": ["move"]}]}, {"ops": [{"op": "move", "index": "x", "t": 1, "s": 1}]},
                                   {"ops": [{"op": "method", "method": ["linear"]}]}, {"ops": "nope"}])
 def test_edits_of_the_wrong_shape_are_400(served, body):
@@ -50,11 +66,7 @@ def test_json_nested_thousands_deep_is_400(served):
 
 
 def test_the_live_connection_survives_bad_messages(served):
-    url, _ = served
-    with httpx.Client(base_url=url, timeout=20) as client:
-        sid = _session(client)
-    with ws_client.connect(url.replace("http", "ws") + f"/api/session/{sid}/live",
-                           additional_headers={"Origin": url}, max_size=None) as ws:
+    with _live(served[0]) as ws:
         for bad in (b"\x00\x01binary", DEEP, json.dumps({"seq": 1, "ops": [{"op": ["x"]}]}),
                     json.dumps({"seq": 2, "ops": [{"op": "move", "index": [], "t": 0, "s": 0}]})):
             ws.send(bad)
@@ -63,11 +75,7 @@ def test_the_live_connection_survives_bad_messages(served):
             msg = json.loads(ws.recv(timeout=20))
             errors += msg["type"] == "error"
         ws.send(json.dumps({"seq": 9, "ops": [{"op": "duration", "duration": 1.5}]}))
-        while True:
-            msg = json.loads(ws.recv(timeout=30))
-            if msg["type"] == "solution" and msg.get("seq") == 9 and msg["final"]:
-                break
-        assert abs(msg["duration"] - 1.5) < 0.05
+        assert abs(_final_duration(ws, 9) - 1.5) < 0.05
 
 
 def test_concurrent_exports_never_share_a_name(served):
@@ -135,3 +143,29 @@ def test_a_solve_whose_page_has_gone_stops():
     with pytest.raises(Cancelled):
         prepare(load_motion(bundled_path("16_33.amc")), cancel=gone)
     assert len(asked) == 6  # stopped at the next frame, not at the end
+
+
+HUGE = 10 ** 400  # a JSON integer no float holds (float() raises OverflowError)
+
+
+@pytest.mark.parametrize("op", [{"op": "params", "method": "physics", "values": {"gravity": HUGE}},
+                                {"op": "move", "index": 1, "t": HUGE, "s": 0.5},
+                                {"op": "duration", "duration": HUGE}])
+def test_a_400_digit_number_is_400_over_http(served, op):
+    with httpx.Client(base_url=served[0], timeout=20) as client:
+        sid = _session(client)
+        r = client.post(f"/api/session/{sid}/edit", content=json.dumps({"ops": [op]}),
+                        headers={"content-type": "application/json"})
+        assert r.status_code == 400 and "finite" in r.json()["error"], r.text
+
+
+def test_a_400_digit_number_over_the_websocket_is_an_error_and_the_next_edit_lands(served):
+    with _live(served[0]) as ws:
+        ws.send(json.dumps({"seq": 1, "ops": [{"op": "params", "method": "physics", "values": {"gravity": HUGE}}]}))
+        while True:
+            msg = json.loads(ws.recv(timeout=20))
+            if msg["type"] == "error":
+                assert msg["seq"] == 1 and "too large" in msg["message"], msg
+                break
+        ws.send(json.dumps({"seq": 2, "ops": [{"op": "duration", "duration": 1.5}]}))
+        assert abs(_final_duration(ws, 2) - 1.5) < 0.05

@@ -63,3 +63,55 @@ def test_a_bridge_that_exits_0_without_output_is_an_error(tmp_path, short_bvh, m
     fbx.write_bytes(b"not read by /bin/true")
     code, _, err = run(["info", str(fbx)])
     assert code == 2 and f"{fbx}: /bin/true exited without error but wrote nothing" in one_line_error(err)
+
+
+def test_check_refuses_a_plot_suffix_before_any_work(tmp_path, short_bvh, monkeypatch):
+    import retime.physics.check as physics_check
+
+    monkeypatch.setattr(physics_check, "check_clip", lambda *a, **k: pytest.fail("the check ran"))
+    code, _, err = run(["check", str(short_bvh), "--plot", str(tmp_path / "p.txt")])
+    assert code == 2 and f"{tmp_path / 'p.txt'}: unsupported plot type .txt" in one_line_error(err)
+
+
+def _chain_bvh(path: Path, joints: int, frames: int = 12) -> Path:
+    """A single chain of ``joints`` joints (no legs), swaying."""
+    lines = ["HIERARCHY", "ROOT j0", "{", "OFFSET 0 0 0", "CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation"]
+    for i in range(1, joints):
+        lines += [f"JOINT j{i}", "{", "OFFSET 0 1 0", "CHANNELS 3 Zrotation Xrotation Yrotation"]
+    lines += ["End Site", "{", "OFFSET 0 1 0", "}"] + ["}"] * joints
+    lines += ["MOTION", f"Frames: {frames}", "Frame Time: 0.0333333"]
+    for f in range(frames):
+        lines.append(" ".join(["0", "10", "0", f"{5 * np.sin(f / 10):.4f}", "0", "0"] + ["1", "0", "0"] * (joints - 1)))
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_check_refuses_a_skeleton_without_legs_before_the_dynamics(tmp_path, monkeypatch):
+    """H2: a 3,000-joint chain took 5 min 48 s and 2.9 GB to be refused; U1: the refusal names the file."""
+    import retime.physics.api as physics_api
+
+    monkeypatch.setattr(physics_api, "prepare_regions", lambda *a, **k: pytest.fail("the dynamics ran"))
+    chain = _chain_bvh(tmp_path / "chain.bvh", 6)
+    code, _, err = run(["check", str(chain)])
+    assert code == 2 and one_line_error(err).startswith(f"retime check: error: {chain}: physics-based retiming needs "
+                                                        "a two-legged character")
+
+
+def test_subtree_sizes_match_the_descendants(short_bvh):
+    from retime.motion.rig import _subtree_sizes, descendants
+
+    rng = np.random.default_rng(3)
+    parents = [-1] + [int(rng.integers(0, k)) for k in range(1, 200)]  # a random tree, parents first
+    assert _subtree_sizes(parents) == [len(descendants(parents, j)) for j in range(200)]
+    skeleton = load_motion(short_bvh).skeleton
+    assert _subtree_sizes(skeleton.parents) == [len(descendants(skeleton.parents, j)) for j in range(skeleton.n_joints)]
+
+
+def test_a_bone_stretch_names_the_file(short_bvh):
+    from retime.physics.dynamics import conformed
+
+    motion = load_motion(short_bvh)
+    stretched = motion.replace(translations=motion.translations.copy())
+    stretched.translations[7, 3] *= 1.6  # a leg bone 60 % longer in frame 7: too much to make rigid
+    with pytest.raises(RetimeError, match=rf"^{short_bvh}: joint '\w+' stretches by up to"):
+        conformed(stretched)

@@ -31,11 +31,18 @@ def register(sub):
 
 def run(args):
     from ..physics.check import check_clip
+    from ..viz.plot import check_plot_path
 
+    if args.plot:
+        check_plot_path(args.plot)  # before the check's minutes of work
     check_outputs([args.report, args.plot], [args.motion, args.asf, args.body, args.contacts])
     motion = load_input(args)
     if motion.n_frames < 4:
         raise RetimeError(f"{args.motion}: checking needs at least 4 frames, the motion has {motion.n_frames}")
+    if args.body is None:  # a body file may name the feet; without one, no legs is refused before the dynamics
+        from ..physics.body import skeleton_limbs
+
+        skeleton_limbs(motion.skeleton)
     result = check_clip(motion, body=args.body, contacts=args.contacts)
     for note in result.notes:
         print(f"note: {note}")

@@ -65,7 +65,9 @@ class Param:
             try:
                 v = float(value)
             except (TypeError, ValueError):
-                raise RetimeError(f"{self.label}: {value!r} is not a number") from None
+                raise RetimeError(f"{self.label}: {str(value)[:40]!r} is not a number") from None
+            except OverflowError:  # an integer of hundreds of digits
+                raise RetimeError(f"{self.label}: a number too large (must be finite)") from None
             if not math.isfinite(v):
                 raise RetimeError(f"{self.label}: must be a finite number")
             if (self.min is not None and v < self.min) or (self.max is not None and v > self.max):

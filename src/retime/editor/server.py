@@ -408,8 +408,11 @@ class LiveLoop:
             if not isinstance(msg, dict) or "ops" not in msg:
                 raise RetimeError("send {\"seq\": N, \"ops\": [ ... edits ... ]}")
             apply_edits(self.session, msg["ops"])
-        except RetimeError as e:
-            await self.send({"type": "error", "seq": seq, "message": str(e)})
+        except Exception as e:  # a RetimeError, or a bug: either way the page hears of it and the socket stays
+            if not isinstance(e, RetimeError):
+                log.exception("edit failed")
+            message = str(e) if isinstance(e, RetimeError) else f"internal error ({type(e).__name__}); the editor is still running"
+            await self.send({"type": "error", "seq": seq, "message": message})
             self.seq = seq
             self.wake.set()  # send the unchanged state so the page puts points back
             return

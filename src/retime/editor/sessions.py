@@ -8,6 +8,7 @@ snapshot and polls ``version`` to stop when a newer edit has arrived.
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import re
 import secrets
@@ -392,7 +393,11 @@ def _reserve_pair(outdir, prefix):
 
 def _num(op, key):
     v = op.get(key)
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+    try:
+        ok = not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
+    except OverflowError:  # an integer of hundreds of digits
+        ok = False
+    if not ok:
         raise RetimeError(f"edit {op.get('op')!r}: {key} must be a finite number")
     return float(v)
 

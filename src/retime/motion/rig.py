@@ -155,16 +155,27 @@ def floating_base(skeleton) -> int:
 def base_and_props(skeleton) -> tuple[int, list[int]]:
     """(:func:`floating_base`, the prop joints beside the body under the dummy roots above it)."""
     j, props = 0, []
+    sizes = _subtree_sizes(skeleton.parents)  # once: a long chain is walked joint by joint
+    with_end_site = {e for e, _ in skeleton.end_sites}
     while skeleton.n_joints - j > 2:
         here = props_below(skeleton, j)
-        if here is None or any(e == j for e, _ in skeleton.end_sites):
+        if here is None or j in with_end_site:
             break
         kids = [k for k in skeleton.children(j) if k not in here]
-        if len(kids) != 1 or len(descendants(skeleton.parents, kids[0])) < 3:
+        if len(kids) != 1 or sizes[kids[0]] < 3:
             break
         props += here
         j = kids[0]
     return j, props
+
+
+def _subtree_sizes(parents) -> list[int]:
+    """How many joints each joint's subtree holds, itself included (parents come before children)."""
+    sizes = [1] * len(parents)
+    for k in range(len(parents) - 1, 0, -1):
+        if parents[k] >= 0:
+            sizes[parents[k]] += sizes[k]
+    return sizes
 
 
 def _depth(parents, j):

@@ -235,7 +235,8 @@ def skeleton_limbs(skeleton) -> Limbs:
         limbs, why = None, str(e)
     if limbs is None:
         why = why or "no joints named like feet"
-        raise RetimeError(f"{BIPED_SENTENCE} ({why}; joints: {', '.join(skeleton.names[:12])}"
+        where = f"{skeleton.source}: " if skeleton.source else ""
+        raise RetimeError(f"{where}{BIPED_SENTENCE} ({why}; joints: {', '.join(skeleton.names[:12])}"
                           f"{', ...' if skeleton.n_joints > 12 else ''}). If it is one, name its feet in a body file "
                           "([feet.left] joint = ...). Guided and linear retiming work on any skeleton.")
     return limbs

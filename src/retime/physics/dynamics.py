@@ -482,7 +482,8 @@ def conformed(motion):
     try:
         return conform(motion)
     except BoneStretch as e:
-        raise RetimeError(str(e)) from None
+        where = f"{motion.skeleton.source}: " if motion.skeleton.source else ""
+        raise RetimeError(f"{where}{e}") from None
 
 
 def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smoothing=DEFAULT_SMOOTHING,

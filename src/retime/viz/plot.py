@@ -55,13 +55,19 @@ def _new_figure(width: float, height: float, dpi: int = 100):
     return fig
 
 
+def check_plot_path(path) -> str:
+    """The plot type of ``path`` by its extension, or the one line refusing it (before any work)."""
+    ext = Path(path).suffix.lower()
+    if ext not in FORMATS:
+        raise RetimeError(f"{path}: unsupported plot type {ext or '(none)'}; use .png, .svg or .pdf")
+    return ext
+
+
 def save_figure(fig, path: str | os.PathLike, dpi: int | None = None) -> None:
     """Write ``fig`` atomically; the format comes from the extension."""
     from retime.io_util import atomic_write
 
-    ext = Path(path).suffix.lower()
-    if ext not in FORMATS:
-        raise RetimeError(f"{path}: unsupported plot type {ext or '(none)'}; use .png, .svg or .pdf")
+    ext = check_plot_path(path)
     with atomic_write(path, "wb") as f:
         fig.savefig(f, format=FORMATS[ext], dpi=dpi or fig.dpi, facecolor="white", metadata=_metadata(ext))
 
