@@ -5,9 +5,10 @@ rounded to float32, written, read back); both retimed at ``--scale`` (default 0.
 two timing curves differ (source frames, over the output frames), the optimizer's iterations,
 whether its stopping test was met, the KKT residual (:func:`retime.physics.optimize.kkt_residual`),
 both final objectives, how much the float32 copy's objective differs from the original's at the same
-timing (the original's answer; when the two problems' splines match), and how many spline coefficients the answer sits on a **kink** of the
-objective for (the one-sided derivatives along the coefficient differ, and keep differing as the step
-shrinks): a minimum on a kink has no vanishing gradient, and which kink wins can be decided by noise.
+timing (the original's answer; when the two problems' splines match), and how many spline
+coefficients the answer sits on a **kink** of the objective for (the one-sided derivatives along the
+coefficient differ, and keep differing as the step shrinks): a minimum on a kink has no vanishing
+gradient, and which kink wins can be decided by noise.
 ``--starts N`` also re-runs the optimizer on the original from N starts that differ from its own by
 1e-6 (relative, random) and prints how far their answers spread: nearby minima, or stops, that
 noise picks between.
@@ -27,8 +28,8 @@ import numpy as np
 
 from retime.motion import load_motion
 from retime.motion.files import save_motion
-from retime.physics.api import physics_warp
-from retime.physics.api import make_problem
+from retime.errors import RetimeError
+from retime.physics.api import make_problem, physics_warp
 from retime.physics.objective import evaluate_c
 from retime.physics.optimize import solve
 
@@ -118,7 +119,7 @@ def main(argv=None):
         with tempfile.TemporaryDirectory() as tmp:
             try:
                 moved, ia, ib, sec, nk, (m, a), same = run(c, args.scale, kw, tmp)
-            except Exception as e:  # a clip physics refuses: say so, go on
+            except RetimeError as e:  # a clip physics refuses: say so, go on
                 print(f"{Path(c).name:14s} refused: {str(e).splitlines()[0][:80]}")
                 continue
         print(f"{Path(c).name:14s} {moved:6.3f} {ia.iterations:5d}/{ib.iterations:5d} {ia.converged:d}/{ib.converged:d} "
