@@ -4,9 +4,11 @@ For every clip: a BVH of it as converted, and a float32 copy (every channel of t
 rounded to float32, written, read back); both retimed at ``--scale`` (default 0.5). Prints how far the
 two timing curves differ (source frames, over the output frames), the optimizer's iterations,
 whether its stopping test was met, the KKT residual (:func:`retime.physics.optimize.kkt_residual`),
-both final objectives, and how many spline coefficients the answer sits on a **kink** of the
-objective for (the one-sided derivatives along the coefficient differ, and keep differing as the step
-shrinks): a minimum on a kink has no vanishing gradient, and which kink wins can be decided by noise.
+both final objectives, how much the float32 copy's objective differs from the original's at the same
+timing (the original's answer; when the two problems' splines match), and how many spline
+coefficients the answer sits on a **kink** of the objective for (the one-sided derivatives along the
+coefficient differ, and keep differing as the step shrinks): a minimum on a kink has no vanishing
+gradient, and which kink wins can be decided by noise.
 ``--starts N`` also re-runs the optimizer on the original from N starts that differ from its own by
 1e-6 (relative, random) and prints how far their answers spread: nearby minima, or stops, that
 noise picks between.
@@ -26,8 +28,8 @@ import numpy as np
 
 from retime.motion import load_motion
 from retime.motion.files import save_motion
-from retime.physics.api import physics_warp
-from retime.physics.api import make_problem
+from retime.errors import RetimeError
+from retime.physics.api import make_problem, physics_warp
 from retime.physics.objective import evaluate_c
 from retime.physics.optimize import solve
 
@@ -96,7 +98,10 @@ def run(path, scale, kw, tmp):
     T = min(a.spline.duration, b.spline.duration)
     t = np.arange(0.0, T, 1.0 / m.fps)
     moved = float(np.max(np.abs(a.curve(t) - b.curve(t)))) * m.fps
-    return moved, a.info, b.info, ta + tb, kinks(a.session.problem, a.spline.w), (m, a)
+    same = None  # the copy's objective at the original's answer, relative to the original's there
+    if b.spline.n_c == a.spline.n_c and b.spline.free == a.spline.free:
+        same = b.session.problem.value(a.spline.w) / a.session.problem.value(a.spline.w) - 1.0
+    return moved, a.info, b.info, ta + tb, kinks(a.session.problem, a.spline.w), (m, a), same
 
 
 def main(argv=None):
@@ -109,16 +114,17 @@ def main(argv=None):
     clips = args.clips or sorted(str(p) for p in BUNDLED.glob("*") if p.suffix in (".amc", ".bvh"))
     kw = {} if args.method is None else {"method": args.method}
     print(f"{'clip':14s} {'moved':>6s} {'iterations':>11s} {'stop':>4s} {'KKT residual':>17s} {'kinks':>5s} "
-          f"{'objective orig / f32':>25s}  why it stopped")
+          f"{'objective orig / f32':>25s} {'same timing':>11s}  why it stopped")
     for c in clips:
         with tempfile.TemporaryDirectory() as tmp:
             try:
-                moved, ia, ib, sec, nk, (m, a) = run(c, args.scale, kw, tmp)
-            except Exception as e:  # a clip physics refuses: say so, go on
+                moved, ia, ib, sec, nk, (m, a), same = run(c, args.scale, kw, tmp)
+            except RetimeError as e:  # a clip physics refuses: say so, go on
                 print(f"{Path(c).name:14s} refused: {str(e).splitlines()[0][:80]}")
                 continue
         print(f"{Path(c).name:14s} {moved:6.3f} {ia.iterations:5d}/{ib.iterations:5d} {ia.converged:d}/{ib.converged:d} "
-              f"{ia.kkt_residual:8.2g}/{ib.kkt_residual:8.2g} {nk:5d} {ia.objective:12.7g}/{ib.objective:12.7g}  "
+              f"{ia.kkt_residual:8.2g}/{ib.kkt_residual:8.2g} {nk:5d} {ia.objective:12.7g}/{ib.objective:12.7g} "
+              f"{'-' if same is None else f'{100 * same:+.3f}%':>11s}  "
               f"{ia.message} | {ib.message}  ({sec:.0f} s)", flush=True)
         if args.starts:
             far, lo, hi = spread_of_starts(a, m, a.spline.duration, args.starts)
