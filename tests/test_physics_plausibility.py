@@ -40,6 +40,7 @@ def test_treadmill_is_said(walk):
     s = _summary(walk.replace(translations=tr))
     assert not s["source_check"]["physical"]
     assert any("feet move while at floor height" in c and "static floor" in c for c in s["source_check"]["causes"])
+    assert s["source_check"]["codes"] == ["treadmill"] and "a treadmill" in s["warnings"][0]  # physics warns
     assert _summary(walk)["source_check"]["physical"]
 
 

@@ -7,13 +7,14 @@ Per source frame, from the path dynamics and feasible regions of the clip at its
   contact force can supply (``RegionSet.source_residual``);
 * ``torque_excess``: the most any joint's torque of the original timing exceeds its limit (N m;
   zero with the default limits, which come from the clip itself, unless a body file sets them);
-* ``com_accel``: the centre of mass's acceleration (m/s^2) and, in flight, ``flight_g``: its
-  vertical component against g (1 in a real flight);
+* ``com_accel``: the centre of mass's acceleration (m/s^2, of the smoothed path) and ``flight_g``:
+  how fast it falls in flight against g (1 in a real flight; the parabola fitted to each flight of
+  the unsmoothed frames, :mod:`.ballistic`);
 * ``foot_slide``: horizontal speed (m/s) of the sole points in contact.
 
-The verdict is :func:`retime.physics.plausibility.check_source`'s: physical unless more than 10% of
-the frames need over a quarter of body weight of residual, or the floor moves under the feet, or the
-root never moves; with the likely causes.
+The verdict is :func:`retime.physics.plausibility.check_source`'s: physical, or each cause found
+(a wrong up axis or frame rate, radians, a root-locked export, a treadmill, sliding feet, a body held
+up off the floor, residual force with no named cause) as a code and a sentence.
 """
 from __future__ import annotations
 
@@ -22,10 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .check_forces import FrameForces, frame_forces
-from .constants import G
 from .plausibility import OFF_RESIDUAL, SourceCheck, check_source, sole_point_velocity
-
-FLIGHT_G_TOL = 0.35  # real jumps, through the dynamics' 0.05 s low-pass: 0.85-1.05 g
 
 
 @dataclass
@@ -47,10 +45,15 @@ class ClipCheck:
 
     @property
     def flight_g(self) -> float | None:
-        """Median vertical centre-of-mass acceleration in flight, in units of -g (None: no flight)."""
-        if not self.flight.any():
-            return None
-        return float(np.median(-self.com_accel[self.flight, 1]) / G)
+        """How fast the centre of mass falls in flight, in units of g (None: no flight to fit)."""
+        f = self.verdict.flight
+        return None if f is None else f.ratio
+
+    @property
+    def airborne(self) -> np.ndarray:
+        """(F,) bool: both feet clear of the floor (the frames the flights are fitted on)."""
+        f = self.verdict.flight
+        return np.zeros(len(self.times), bool) if f is None or f.airborne is None else f.airborne
 
     def worst_frames(self, k: int = 5, apart: float = 0.1) -> list[int]:
         """Up to ``k`` frames of the largest residual over a quarter body weight, ``apart`` seconds
@@ -75,18 +78,21 @@ class ClipCheck:
             "max_torque_excess": round(float(self.torque_excess.max()), 3) if len(self.times) else 0.0,
             "flight_share": round(float(self.flight.mean()), 4),
             "flight_g": None if self.flight_g is None else round(self.flight_g, 3),
+            "flights": self.verdict.as_dict()["flights"], "time_factor": self.verdict.as_dict()["time_factor"],
             "median_foot_slide": round(float(np.median(slide)), 4) if slide.size else 0.0,
             "worst_frames": self.worst_frames(),
+            "codes": self.verdict.codes,
             "causes": list(self.verdict.causes),
             "notes": list(self.notes),
         }
 
     def report(self) -> dict:
         frames = [{"frame": i, "time": round(float(t), 6), "residual": round(float(r), 5),
-                   "torque_excess": round(float(e), 4), "flight": bool(f), "foot_slide": round(float(s), 4),
-                   "com_accel": [round(float(x), 4) for x in a]}
-                  for i, (t, r, e, f, s, a) in enumerate(zip(self.times, self.residual, self.torque_excess, self.flight,
-                                                           self.foot_slide, self.com_accel))]
+                   "torque_excess": round(float(e), 4), "flight": bool(f), "airborne": bool(b),
+                   "foot_slide": round(float(s), 4), "com_accel": [round(float(x), 4) for x in a]}
+                  for i, (t, r, e, f, b, s, a) in enumerate(zip(self.times, self.residual, self.torque_excess,
+                                                              self.flight, self.airborne, self.foot_slide,
+                                                              self.com_accel))]
         if self.forces is not None:
             for i, frame in enumerate(frames):
                 frame.update(self.forces.frame(i))
@@ -100,8 +106,8 @@ class ClipCheck:
             numbers += f"; in flight the centre of mass falls at {s['flight_g']:.2f} g"
         if self.physical:
             return f"physical as captured: {numbers}"
-        return f"NOT physical as captured: {numbers}. Likely: " + ("; ".join(self.verdict.causes) or
-                                                                   "hand contacts, props, noise or keyframed motion")
+        return f"NOT physical as captured: {numbers}. " + " ".join(f"[{c.code}] {c.sentence}."
+                                                                    for c in self.verdict.found)
 
 
 def _com_accel(terms) -> np.ndarray:
@@ -139,12 +145,6 @@ def check_clip(motion, body=None, contacts=None) -> ClipCheck:
     out = ClipCheck(fps=float(motion.fps), times=np.asarray(terms.times)[::spf], residual=residual,
                     torque_excess=_torque_excess(terms), com_accel=_com_accel(terms), flight=~contact.any(axis=1),
                     foot_slide=_foot_slide(terms), verdict=check_source(motion, terms, regions),
-                    notes=list(getattr(terms, "conform_notes", [])), forces=frame_forces(motion, terms, regions.body_weight))
-    g = out.flight_g
-    up_wrong = any("up axis" in c for c in out.verdict.causes)
-    if (not out.physical and not up_wrong and g is not None and out.flight.sum() >= 0.1 * motion.fps
-            and abs(g - 1.0) > FLIGHT_G_TOL):
-        out.verdict.causes.insert(0, f"in flight the centre of mass falls at {g:.2f} g, not 1 g: the clip plays "
-                                     f"{'too fast' if g > 1 else 'too slow'} (a wrong Frame Time or --fps?) or its "
-                                     "units are wrong (give --units)")
+                    notes=list(getattr(terms, "conform_notes", [])),
+                    forces=frame_forces(motion, terms, regions.body_weight))
     return out

@@ -1,18 +1,36 @@
-"""Is the clip physical as captured? Said before retiming, with the number and the likely causes.
+"""Is the clip physical as captured? Said before retiming: physical, or each cause found as a code
+(:data:`CAUSES`) and a sentence with its numbers and what to do.
 
-The regions (:mod:`.regions`) measure, per source frame, the residual force the clip's *own*
-timing needs beyond what the body and its foot contacts can give (``source_residual``, in body
-weights). Captured motion of a real person needs little (the CMU jumps: 2-7 % of frames above a
-quarter of body weight). A clip read with the wrong up axis needs about one body weight on every
-frame; a root-locked, treadmill or keyframed clip needs a lot on many. Regions are widened by that
-residual, so a retiming of such a clip can look "100 % feasible" while its physics means little:
-:func:`check_source` says so, and why it is likely to be.
+* **Flights** (:mod:`.ballistic`): in flight the centre of mass falls at g. A clip whose flights
+  fall at another rate plays at the wrong frame rate (``frame_rate``, named with its factor and the
+  Frame Time that fits); one whose body barely falls with both feet off the floor is held up by
+  something physics does not see (``held_up``).
+* **Floor and root**: feet that move at floor height while the root goes nowhere are on a
+  treadmill (``treadmill``), or skate (``foot_slide``); a root that never moves is an in-place
+  export (``root_locked``); a pose that never changes while the root moves was written in radians
+  (``radians``).
+* **Residual**: the regions (:mod:`.regions`) measure, per source frame, the force the clip's own
+  timing needs beyond what the body and its foot contacts can give (``source_residual``, in body
+  weights). Real captures need little on most frames; a clip read with the wrong up axis needs
+  about one body weight on every frame (``up_axis``). Frames within two smoothing widths of a
+  flight that falls at g are left to the flight's parabola: the path's low-pass smears the stance
+  forces around a run's 0.1 s flights into them (a run's frames would otherwise read 17-70 %
+  over). Residual left with no named cause is ``unexplained`` (hands, props, keyframed motion).
+
+Regions are widened by the residual, so a retiming of such a clip can look "100 % feasible" while
+its physics means little: :func:`check_source` says so, and why.
+
+Calibrated on ../shared/data (CMU and the dev set) and their metamorphic variants
+(``benchmarks/check_verdicts.py``).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.ndimage import binary_dilation
+
+from .ballistic import FlightGravity, FootPoints, flight_gravity, foot_points
 
 OFF_RESIDUAL = 0.25  # body weights: a source frame needing more is not physical as captured
 MAX_OFF_SHARE = 0.1  # a clip with more such frames is not physical as captured
@@ -20,34 +38,79 @@ MAX_OFF_SHARE = 0.1  # a clip with more such frames is not physical as captured
 SLIDE_SPEED = 0.45  # m/s: median horizontal speed of the feet at floor height above this is sliding
 # (real captures on the dev set and CMU: 0.00-0.30 m/s; a walk with its travel removed: 0.64)
 STILL_ROOT_M = 1e-3  # the root moving less than this (std, metres) is locked in place
-FROZEN_DEG = 2.0  # every joint within this of its mean pose: a frozen clip
+FROZEN_DEG = 6.5  # every joint but the root within this of its rest pose on every frame: a frozen clip
+FLIGHT_G = (0.8, 1.3)  # flights falling in this range (units of g) play at their true rate
+# (real flights on CMU and the dev set, with the default body's masses: 0.91-1.19 g; Frame Time
+# x1.25 gives 0.59-0.76 g, x0.8 1.43-1.86 g)
+MIN_FLIGHT_S = 0.1  # fitted flight (s) below this says nothing about the frame rate
+HELD_G = 0.2  # flights falling slower than this are held up, not slowed down (a rate 2.2x off)
+TREADMILL_TRAVEL = 0.3  # the root travelling less than this share of the feet's floor speed: a treadmill
+TRAVEL_WINDOW_S = 1.0  # the root's travel is measured over this, so a stance's sway does not count
+BODY_HEIGHT_M = (1.0, 2.3)  # a body outside this (metres) may be read in the wrong unit
+COMMON_RATES = (24, 25, 30, 48, 50, 60, 90, 100, 120, 240)  # fps a fitted rate is snapped to ...
+UNIT_SNAP = 0.05  # a guessed unit this close to a common one that gives 1 g flights is that one
+RATE_SNAP = 0.1  # ... when this close (relative; flights measure a clip's rate to about 8 %)
+
+
+@dataclass
+class Cause:
+    """One reason a clip is not physical as captured: ``code`` (one of :data:`CAUSES`) and a sentence
+    with the numbers and what to do."""
+
+    code: str
+    sentence: str
+
+    def __post_init__(self):
+        assert self.code in CAUSES, self.code
+
+
+CAUSES = {  # code: what it means (the sentence gives the numbers)
+    "up_axis": "the up axis is wrong",
+    "frame_rate": "the clip plays at the wrong frame rate",
+    "radians": "rotations written in radians were read as degrees",
+    "root_locked": "an in-place (root-locked) export",
+    "treadmill": "a treadmill capture",
+    "foot_slide": "the feet slide on the floor",
+    "held_up": "the body is held up with both feet off the floor",
+    "units": "the length unit is wrong",
+    "unexplained": "more residual force than a real capture needs, for no named reason",
+}
 
 
 @dataclass
 class SourceCheck:
     physical: bool
-    off_share: float  # share of source frames needing more than OFF_RESIDUAL
+    off_share: float  # share of the judged source frames needing more than OFF_RESIDUAL
     median_residual: float  # body weights
-    causes: list[str] = field(default_factory=list)
+    found: list[Cause] = field(default_factory=list)
+    flight: FlightGravity | None = None  # the flights' parabolas (None: not measured)
+    travel: float = 0.0  # m/s, the root's mean horizontal travel over 1 s
+    slide: float = 0.0  # m/s, median horizontal speed of the foot points bearing on the floor
+    judged_share: float = 1.0  # share of the frames the residual judged (the rest: near flights)
+
+    @property
+    def causes(self) -> list[str]:
+        return [c.sentence for c in self.found]
+
+    @property
+    def codes(self) -> list[str]:
+        return [c.code for c in self.found]
 
     def message(self) -> str:
         if self.physical:
             return ""
-        causes = "; ".join(self.causes) if self.causes else (
-            "hand or knee contacts (cartwheels, crawls), props, noisy tracking, or keyframed motion that was never "
-            "physical")
-        if self.off_share > MAX_OFF_SHARE:
-            what = (f"{self.off_share:.0%} of its frames need more than {OFF_RESIDUAL:.0%} of body weight of extra "
-                    f"force at their own timing (median {self.median_residual:.2f}). Likely: {causes}")
-        else:
-            what = causes
-        return (f"this clip is not physical as captured: {what}. Feasibility is measured against regions widened "
-                "to the clip's own residual, so it means less than usual")
+        return (f"this clip is not physical as captured: {'; '.join(self.causes)}. Feasibility is measured "
+                "against regions widened to the clip's own residual, so it means less than usual")
 
     def as_dict(self) -> dict:
+        f = self.flight
         return {"physical": self.physical, "off_share": round(self.off_share, 4),
-                "median_residual": round(self.median_residual, 4), "causes": list(self.causes)}
-
+                "median_residual": round(self.median_residual, 4), "codes": self.codes, "causes": self.causes,
+                "flight_g": None if f is None or f.ratio is None else round(f.ratio, 4),
+                "flights": 0 if f is None else len(f.flights),
+                "flight_seconds": 0.0 if f is None else round(f.seconds, 4),
+                "time_factor": None if f is None or f.time_factor is None else round(f.time_factor, 4),
+                "root_travel": round(self.travel, 4), "floor_slide": round(self.slide, 4), "judged_share": round(self.judged_share, 4)}
 
 def sole_point_velocity(terms) -> np.ndarray:
     """(F, 4, 2) horizontal velocity (m/s, x and z) of each contact point (the midpoint of its two
@@ -59,74 +122,157 @@ def sole_point_velocity(terms) -> np.ndarray:
     return np.gradient(mid[..., [0, 2]], axis=0) * float(terms.fps)
 
 
-def floor_slide(terms) -> tuple[float, float]:
-    """(median horizontal speed m/s, steadiness 0-1) of the sole points while they are at floor
-    height (within 3 cm of the local floor, :func:`.contacts.local_floor`), whether or not contact
-    detection called them planted. Steadiness is |mean velocity| / mean speed: near 1 when the
-    feet are carried one way, as on a treadmill; near 0 for skating back and forth."""
-    from .contacts import local_floor
-
-    corners = np.asarray(terms.corners)[::int(terms.samples_per_frame)]  # (F, 8, 3), y up
-    if len(corners) < 3:
-        return 0.0, 0.0
-    low = np.minimum(corners[:, 0::2, 1], corners[:, 1::2, 1])  # (F, 4)
-    height = low - local_floor(low, terms.fps)[:, None]
-    v = sole_point_velocity(terms)
-    on_floor = height < 0.03
+def floor_slide(points: FootPoints) -> tuple[float, float]:
+    """(median horizontal speed m/s, steadiness 0-1) of the foot points while they bear on the
+    floor (:attr:`.ballistic.FootPoints.bears`), whether or not contact detection called them
+    planted. Steadiness is |mean velocity| / mean speed: near 1 when the feet are carried one way,
+    as on a treadmill; near 0 for skating back and forth."""
+    on_floor = points.bears
     if not on_floor.any():
         return 0.0, 0.0
-    vf = v[on_floor]
+    vf = points.velocity[on_floor][:, [0, 2]]
     speed = np.linalg.norm(vf, axis=-1)
     steady = float(np.linalg.norm(vf.mean(axis=0)) / max(speed.mean(), 1e-9))
     return float(np.median(speed)), steady
 
 
 def _frozen(motion) -> bool:
-    q = np.asarray(motion.rotations)
-    if len(q) < 3:
+    """Every joint but the root stays within :data:`FROZEN_DEG` of its rest pose on every frame: a
+    pose no capture holds, and what radians read as degrees give (2 pi rad read as 6.3 deg). The
+    root's own rotation is left out: it is the heading, anything."""
+    q = np.asarray(motion.rotations)[:, 1:]
+    if len(q) < 3 or q.shape[1] == 0:
         return False
-    mean = q.mean(axis=0)
-    mean /= np.maximum(np.linalg.norm(mean, axis=-1, keepdims=True), 1e-12)
-    dot = np.clip(np.abs(np.sum(q * mean, axis=-1)), 0, 1)
-    return bool(np.degrees(2 * np.arccos(dot)).max() < FROZEN_DEG)
+    angle = np.degrees(2 * np.arccos(np.clip(np.abs(q[..., 3]), 0, 1)))
+    return bool(angle.max() < FROZEN_DEG)
+
+
+def root_travel(root, fps) -> float:
+    """Mean horizontal distance (m) the root covers in :data:`TRAVEL_WINDOW_S`, per second: its
+    travel, not its sway (a treadmill's root sways a few centimetres and goes nowhere)."""
+    root = np.asarray(root, dtype=float)
+    k = max(1, min(len(root) - 1, int(round(TRAVEL_WINDOW_S * fps))))
+    if len(root) < 2:
+        return 0.0
+    step = root[k:, [0, 2]] - root[:-k, [0, 2]]
+    return float(np.mean(np.linalg.norm(step, axis=1)) * fps / k)
+
+
+def _common_rate(fps: float) -> float | None:
+    near = min(COMMON_RATES, key=lambda r: abs(r - fps))
+    return float(near) if abs(near - fps) <= RATE_SNAP * near else None
+
+
+def _unit_that_fits(flight: FlightGravity, frame) -> str | None:
+    """The common length unit under which the flights fall at 1 g, when the unit was only guessed
+    (an unusual scale) and one is within :data:`UNIT_SNAP`: a scale is as likely wrong as a rate."""
+    from ..motion.frame import UNITS
+
+    if frame is None or frame.unit_confidence in ("sure", "declared", "given"):
+        return None
+    fit = frame.meters_per_unit / flight.ratio
+    name, mpu = min(UNITS.items(), key=lambda u: abs(np.log(u[1] / fit)))
+    return name if abs(mpu / fit - 1.0) <= UNIT_SNAP else None
+
+
+def flight_cause(flight: FlightGravity, fps: float, frame) -> Cause:
+    """Flights that fall at the wrong rate: the wrong frame rate, named by its factor and the Frame
+    Time that fits, or (a guessed scale, :func:`_unit_that_fits`) the wrong unit; ``frame``: the
+    skeleton's FrameGuess."""
+    k = flight.time_factor
+    ft, fit = 1.0 / fps, 1.0 / (fps * k)
+    how = f"{k:.2f}x too slow" if k > 1 else f"{1 / k:.2f}x too fast"
+    rate = _common_rate(1.0 / fit)
+    falls = (f"in {len(flight.flights)} flight{'s' if len(flight.flights) > 1 else ''} ({flight.seconds:.2f} s) the "
+             f"centre of mass falls at {flight.ratio:.2f} g, not 1 g")
+    rate_fix = f"{1.0 / fit:.0f} fps: likely {rate:g}, give --fps {rate:g}" if rate else f"give --fps {1.0 / fit:.0f}"
+    unit = _unit_that_fits(flight, frame)
+    if unit is not None:
+        return Cause("units", f"the length unit is likely {unit}, not {frame.meters_per_unit:.4g} m "
+                              f"({frame.unit_confidence}): {falls} (give --units {unit}); or it plays {how} "
+                              f"(Frame Time {ft:.4f} s; {fit:.4f} s fits: {rate_fix})")
+    s = f"plays {how}: Frame Time {ft:.4f} s; {fit:.4f} s fits ({rate_fix}); {falls}"
+    if frame is not None and not (BODY_HEIGHT_M[0] <= frame.height_m <= BODY_HEIGHT_M[1]):
+        s += (f"; or the length unit is off (1 unit = {frame.meters_per_unit:.4g} m, {frame.unit_confidence}, "
+              f"the body {frame.height_m:.2f} m tall: give --units)")
+    return Cause("frame_rate", s)
+
+
+def _near(mask, frames: int) -> np.ndarray:
+    return binary_dilation(mask, iterations=frames) if frames > 0 and mask.any() else mask
 
 
 def check_source(motion, terms, regions) -> SourceCheck:
     """How physical ``motion`` (the conformed motion physics saw, or the original) is at its own
-    timing, from the ``terms`` and ``regions`` of its dynamics; the likely causes when it is not."""
+    timing, from the ``terms`` and ``regions`` of its dynamics; the causes when it is not (see the
+    module docstring)."""
+    from .dynamics import conformed
+
     res = np.asarray(regions.source_residual, dtype=float)
     spf = int(terms.samples_per_frame)
     res = res[::spf] if len(res) > motion.n_frames else res
-    off = float(np.mean(res > OFF_RESIDUAL)) if res.size else 0.0
-    med = float(np.median(res)) if res.size else 0.0
-    causes = []
-    slide, steady = floor_slide(terms)
-    if slide > SLIDE_SPEED:  # kinematic: the dynamics of a treadmill walk are an overground walk's
-        how = "steadily one way: a treadmill or an in-place loop" if steady > 0.5 else \
-            "a treadmill, an in-place loop, foot skating or noisy tracking"
-        causes.append(f"the feet move while at floor height (median {slide:.2f} m/s, {how}); physics assumes a "
-                      "static floor and feet that stay where they land")
-    root = np.asarray(terms.root_origin)[::spf]
-    if len(root) > 2 and float(np.max(np.std(root, axis=0))) < STILL_ROOT_M and not _frozen(motion):
-        causes.append("the root never moves: an in-place (root-locked) export, which has no travel or "
-                      "balance to keep; physics needs the character's own root motion")
-    physical = off <= MAX_OFF_SHARE and not causes
+    fps = float(terms.fps)
     frame = getattr(motion.skeleton, "frame", None)
-    if off > MAX_OFF_SHARE:
-        up_given = frame is not None and frame.up_given
-        if med > 0.6 and off > 0.8 and (frame is None or frame.up_confidence < 0.9 or up_given):
-            conf = (", as given" if up_given else f", {frame.up_confidence:.0%} of frames agree") if frame is not None else ""
-            causes.append(f"the up axis is wrong (read as {motion.skeleton.up if frame is None else frame.up}"
-                          f"{conf}; give --up)")
+    points = foot_points(conformed(motion).motion, terms.body)
+    flight = flight_gravity(points, fps)
+    air = flight.airborne if flight.airborne is not None and len(flight.airborne) == len(res) else np.zeros(len(res), bool)
+    found = []
+    off_all = float(np.mean(res > OFF_RESIDUAL)) if res.size else 0.0
+    med_all = float(np.median(res)) if res.size else 0.0
+    up_given = frame is not None and frame.up_given
+    if med_all > 0.6 and off_all > 0.8 and (frame is None or frame.up_confidence < 0.9 or up_given):
+        conf = (", as given" if up_given else f", {frame.up_confidence:.0%} of frames agree") if frame is not None else ""
+        found.append(Cause("up_axis", f"the up axis is wrong (read as {motion.skeleton.up if frame is None else frame.up}"
+                                      f"{conf}; give --up)"))
+    frozen = _frozen(motion)
+    root = np.asarray(terms.root_origin)[::spf]
+    still = len(root) > 2 and float(np.max(np.std(root, axis=0))) < STILL_ROOT_M
+    if frozen and not still:
+        found.append(Cause("radians", f"the pose barely changes (every joint within {FROZEN_DEG:g} deg of its rest "
+                                      "pose) while the root moves: rotations written in radians but read as degrees? give --angles rad"))
+    if still and not frozen:
+        found.append(Cause("root_locked", "the root never moves: an in-place (root-locked) export, which has no "
+                                          "travel or balance to keep; physics needs the character's own root motion"))
+    travel = root_travel(root, fps)
+    slide, steady = floor_slide(points)
+    if slide > SLIDE_SPEED and not still and not frozen:
+        if travel < TREADMILL_TRAVEL * slide:
+            how = "steadily one way" if steady > 0.5 else "back and forth"
+            found.append(Cause("treadmill", f"a treadmill or an in-place loop: the feet move while at floor height "
+                                            f"(median {slide:.2f} m/s, {how}) while the root travels {travel:.2f} m/s; "
+                                            "physics assumes a static floor and feet that stay where they land"))
+        else:
+            found.append(Cause("foot_slide", f"the feet move while at floor height (median {slide:.2f} m/s; the root "
+                                             f"travels {travel:.2f} m/s): foot skating or noisy tracking; physics "
+                                             "assumes a static floor and feet that stay where they land"))
+    measured = flight.ratio is not None and flight.seconds >= MIN_FLIGHT_S
+    ballistic = measured and FLIGHT_G[0] <= flight.ratio <= FLIGHT_G[1]
+    trusted = not found  # a wrong up axis, a frozen pose or a pinned root make the flights meaningless
+    if trusted and measured and not ballistic:
+        if flight.ratio < HELD_G:
+            found.append(Cause("held_up", f"with both feet off the floor ({flight.seconds:.2f} s fitted) the centre "
+                                          f"of mass falls at {flight.ratio:.2f} g: something else holds the body up "
+                                          "(hands or knees on the floor, a prop, a floor the feet do not reach, or "
+                                          "feet tracked badly)"))
+        else:
+            found.append(flight_cause(flight, fps, frame))
+    # frames within two smoothing widths of a flight get the stance forces around it smeared into them:
+    # there the flight's parabola judges the clip, not the residual
+    # (flights too short to fit, as a run's may be, are not contradicted either)
+    judged = ~_near(air, int(round(2 * terms.smoothing * fps))) if ballistic or not measured else np.ones(len(res), bool)
+    off = float(np.mean(res[judged] > OFF_RESIDUAL)) if judged.any() else 0.0
+    med = float(np.median(res[judged])) if judged.any() else 0.0
+    if off > MAX_OFF_SHARE and trusted and not found:
         if frame is not None and frame.unit_confidence not in ("sure", "declared", "given"):
-            causes.append(f"the length unit is uncertain (read as 1 unit = {frame.meters_per_unit:.4g} m, "
-                          f"{frame.unit_confidence}; give --units)")
-        if _frozen(motion):
-            causes.append(f"the pose barely changes (every joint within {FROZEN_DEG:g} deg): rotations written "
-                          "in radians but read as degrees? give --angles rad")
-        contact = np.asarray(terms.contact, dtype=bool)[::spf]
-        air = float(np.mean(~contact.any(axis=1))) if contact.size else 0.0
-        if air > 0.4:
-            causes.append(f"no foot is on the floor in {air:.0%} of the frames (a floating capture floor, a "
-                          "platform, hands on the floor, or feet tracked badly)")
-    return SourceCheck(physical, off, med, causes)
+            found.append(Cause("units", f"the length unit is uncertain (read as 1 unit = {frame.meters_per_unit:.4g} m, "
+                                        f"{frame.unit_confidence}; give --units)"))
+        elif float(air.mean()) > 0.4 and not ballistic:
+            found.append(Cause("held_up", f"both feet are off the floor in {air.mean():.0%} of the frames, yet the body "
+                                          "does not fall as in a flight (a floating capture floor, a platform, hands "
+                                          "on the floor, or feet tracked badly)"))
+        else:
+            found.append(Cause("unexplained", f"{off:.0%} of its frames need more than {OFF_RESIDUAL:.0%} of body "
+                                              f"weight of extra force at their own timing (median {med:.2f}): hand or "
+                                              "knee contacts (cartwheels, crawls), props, noisy tracking, or keyframed "
+                                              "motion that was never physical"))
+    return SourceCheck(not found, off, med, found, flight, travel, slide, float(judged.mean()) if judged.size else 1.0)
