@@ -89,3 +89,17 @@ def elephant(seconds=4.0, fps=30.0) -> Motion:
     root = np.zeros((len(t), 3))
     root[:, 1] = 2.0
     return _motion(names, [j[1] for j in joints], [j[2] for j in joints], angles, root, fps)
+
+
+def lying(seconds=4.0, fps=30.0) -> Motion:
+    """The figure lying on its back along x (head at -x), raising and lowering its arms and one
+    knee: its head is level with its feet, so only the floor under its back says where up is."""
+    t = np.arange(int(seconds * fps)) / fps
+    idx = {n: k for k, n in enumerate(NAMES)}
+    wave = np.sin(2 * np.pi * 0.5 * t) ** 2
+    angles = {idx["root"]: 90.0 + 0 * t,  # the body's up (+y) turned to -x: lying on its back
+              idx["lclavicle"]: 150 * wave, idx["rclavicle"]: 150 * wave,  # arms raised over the chest and down
+              idx["lhipjoint"]: 60 * wave, idx["lfemur"]: -100 * wave}  # one knee drawn up
+    root = np.zeros((len(t), 3))
+    root[:, 1] = 0.1
+    return _motion([_AT[n] for n in NAMES], PARENTS, OFFSETS, angles, root, fps)

@@ -35,6 +35,7 @@ VARIANTS = {
     "second life": lambda m: V.rename(m, "secondlife"),
     "xsens": lambda m: V.rename(m, "xsens"),
     "3ds max biped": lambda m: V.rename(m, "biped"),
+    "cmu": lambda m: V.rename(m, "cmu"),
     "dummy root with the travel": lambda m: V.add_dummy_root(m, share=1.0),
     "static dummy root": lambda m: V.add_dummy_root(m, share=0.0),
     "travel split": lambda m: V.add_dummy_root(m, share=0.5),
@@ -203,7 +204,7 @@ def test_unusual_scale_is_kept_and_said():
 
 @need_dev
 @pytest.mark.parametrize("file", ["wd2_short_broad_jump.bvh", "jumping.bvh"])
-@pytest.mark.parametrize("variant", ["z-up", "inches", "mixamo", "dummy root with the travel", "6 channels"])
+@pytest.mark.parametrize("variant", ["z-up", "inches", "mixamo", "unreal", "dummy root with the travel", "6 channels"])
 def test_dev_variants_have_the_same_physics_timing(file, variant, tmp_path):
     original = _written(load_motion(DEV / file), tmp_path, "orig")
     v = _written(VARIANTS[variant](original), tmp_path, variant)
@@ -433,3 +434,14 @@ def test_dev_files_keep_their_up_and_units_turned_rescaled_and_rerooted(file, tm
     for name in ("z-up", "x-up", "dummy root"):
         _assert_frame_kept(original, name, tmp_path)
     _assert_frame_kept(original, "as written", tmp_path, original.skeleton.meters_per_unit / UNITS["mm"])
+
+
+def test_a_body_lying_on_its_back_is_read_y_up(tmp_path):
+    """Head level with the feet (read -x before the fix): the back on the floor says +y, under
+    every turn and dummy root, in centimetres."""
+    from floor_poses import lying
+
+    m = _written(V.rescale(lying(), 1 / UNITS["cm"]), tmp_path, "lying")
+    assert m.skeleton.up == "+y" and m.skeleton.frame.unit == "cm"
+    for name in FLOOR_VARIANTS:
+        _assert_frame_kept(m, name, tmp_path)
