@@ -376,6 +376,11 @@ def test_a_sliding_joint_is_made_rigid_unless_it_moves_a_foot_on_the_floor(jump)
     bone = 100 * np.linalg.norm(jump.skeleton.offsets[foot]) * jump.skeleton.meters_per_unit  # 43.9 cm
     assert short == pytest.approx(bone, abs=0.3) and long_ == pytest.approx(1.09 * bone, abs=0.3)
     assert turn == pytest.approx(13, abs=1.5) and 9 < moved < 12
+    from retime.physics.api import physics_warp
+
+    summary = physics_warp(in_air, scale=0.7).report["summary"]  # physics says it as a warning, not a note
+    assert any("'lfoot' slides" in w for w in summary["warnings"])
+    assert not any("slides" in n for n in summary["conform_notes"])
     on_floor = _slide(jump, foot, np.arange(40, 80), 13.0, 0.09)  # standing before the jump
     with pytest.raises(RetimeError, match=r"moves 'l(foot|toes)' by ([6-9]|1\d)\.\d cm at frame (4\d|5\d|6\d|7\d), "
                                           r"where it is on the floor \(physics allows 5 cm\).*'lfoot' slides"):

@@ -249,8 +249,8 @@ def physics_warp(motion, duration=None, scale=None, gravity=None, mass_factors=N
                                      "conform_notes": [n for n in getattr(terms, "conform_notes", [])
                                                        if n not in getattr(terms, "conform_warnings", [])],
                                      "source_check": source.as_dict(),
-                                     "warnings": list(getattr(terms, "conform_warnings", []))
-                                     + [w for w in [source.message()] if w],
+                                     "warnings": [w for w in [source.message()] if w]
+                                     + list(getattr(terms, "conform_warnings", [])),
                                      "mass_factors": dict(mass_factors or {}), "timings": {k: round(v, 4) for k, v in timings.items()},
                                      "bind_pose_frames": int(getattr(terms, "bind_pose_frames", 0)),
                                      "least_duration": None if not np.isfinite(fastest.duration) else round(fastest.duration, 4)})
