@@ -1,5 +1,6 @@
 """Path dynamics: checked against analytic answers, Pinocchio and momentum finite differences."""
 import copy
+import re
 
 import numpy as np
 import pinocchio as pin
@@ -333,10 +334,57 @@ def test_short_and_non_rigid_motions(jump):
     stretched = jump.replace(translations=jump.translations.copy())
     stretched.translations[7, 3] *= 1.1  # the left knee slides along the femur in frame 7: made rigid, reported
     terms = dynamics_terms(stretched, reference=False)
-    assert any("'ltibia' stretches by up to 4." in n and "frame 7" in n for n in terms.conform_notes), terms.conform_notes
-    stretched.translations[7, 3] *= 1.3  # 43 %: refused, with the stretch and what to do
-    with pytest.raises(RetimeError, match=r"'ltibia' stretches by up to 1\d\.\d cm \(\d+% of its 39.7 cm bone\) at frame 7.*re-export"):
+    assert any("'ltibia' stretches: its offset moves by up to 4." in n and "frame 7" in n
+               for n in terms.conform_notes), terms.conform_notes
+    stretched.translations[7, 3] *= 1.3  # 43 %, with the foot on the floor: refused, with the figures and what to do
+    with pytest.raises(RetimeError, match=r"moves 'l(foot|toes)' by 1\d\.\d cm at frame 7, where it is on the floor"
+                                          r".*'ltibia' stretches: its offset moves by up to 1\d\.\d cm at frame 7 "
+                                          r"\(\d+% of its 39.7 cm bone\).*re-export"):
         path_dynamics(stretched)
+
+
+def _slide(motion, joint, frames, angle_deg, length_gain):
+    """The joint's offset turned by up to ``angle_deg`` about the parent's z axis and lengthened by up
+    to ``length_gain`` over ``frames`` (a smooth bump, zero outside): a Perception Neuron joint that
+    slides over its parent's bone."""
+    from scipy.spatial.transform import Rotation
+
+    out = motion.replace(translations=motion.translations.copy())
+    bump = np.zeros(motion.n_frames)
+    bump[frames] = np.sin(np.linspace(0, np.pi, len(frames))) ** 2
+    for f in np.nonzero(bump)[0]:
+        turn = Rotation.from_euler("z", angle_deg * bump[f], degrees=True).as_matrix()
+        out.translations[f, joint] = turn @ motion.translations[f, joint] * (1 + length_gain * bump[f])
+    return out
+
+
+def test_a_sliding_joint_is_made_rigid_unless_it_moves_a_foot_on_the_floor(jump):
+    """The issue's Perception Neuron file: the foot joint's offset moves by 10.6 cm while its length
+    only goes from 40.4 to 44.3 cm. Said apart (a slide, with both figures), made rigid with a
+    warning while the foot is in the air (16_06 is in flight at frames 256-295), refused with the
+    figure when the rigid bones would move the foot where it stands on the floor."""
+    from retime.errors import RetimeError
+
+    foot = jump.skeleton.index("lfoot")
+    in_air = _slide(jump, foot, np.arange(256, 296), 13.0, 0.09)
+    warnings = dynamics_terms(in_air, reference=False).conform_warnings
+    note = next(n for n in warnings if "'lfoot' slides" in n)
+    assert float(re.search(r"moves the feet by at most ([\d.]+) cm where they are on the floor", note).group(1)) < 5
+    moved, short, long_, turn = (float(x) for x in re.search(
+        r"moves by up to ([\d.]+) cm.*changes ([\d.]+) to ([\d.]+) cm, its direction by up to (\d+) degrees",
+        note).groups())
+    bone = 100 * np.linalg.norm(jump.skeleton.offsets[foot]) * jump.skeleton.meters_per_unit  # 43.9 cm
+    assert short == pytest.approx(bone, abs=0.3) and long_ == pytest.approx(1.09 * bone, abs=0.3)
+    assert turn == pytest.approx(13, abs=1.5) and 9 < moved < 12
+    from retime.physics.api import physics_warp
+
+    summary = physics_warp(in_air, scale=0.7).report["summary"]  # physics says it as a warning, not a note
+    assert any("'lfoot' slides" in w for w in summary["warnings"])
+    assert not any("slides" in n for n in summary["conform_notes"])
+    on_floor = _slide(jump, foot, np.arange(40, 80), 13.0, 0.09)  # standing before the jump
+    with pytest.raises(RetimeError, match=r"moves 'l(foot|toes)' by ([6-9]|1\d)\.\d cm at frame (4\d|5\d|6\d|7\d), "
+                                          r"where it is on the floor \(physics allows 5 cm\).*'lfoot' slides"):
+        path_dynamics(on_floor)
 
 
 def test_noise_band_is_finite_beside_large_differences():

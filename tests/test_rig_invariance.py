@@ -35,6 +35,7 @@ VARIANTS = {
     "second life": lambda m: V.rename(m, "secondlife"),
     "xsens": lambda m: V.rename(m, "xsens"),
     "3ds max biped": lambda m: V.rename(m, "biped"),
+    "cmu": lambda m: V.rename(m, "cmu"),
     "dummy root with the travel": lambda m: V.add_dummy_root(m, share=1.0),
     "static dummy root": lambda m: V.add_dummy_root(m, share=0.0),
     "travel split": lambda m: V.add_dummy_root(m, share=0.5),
@@ -203,7 +204,7 @@ def test_unusual_scale_is_kept_and_said():
 
 @need_dev
 @pytest.mark.parametrize("file", ["wd2_short_broad_jump.bvh", "jumping.bvh"])
-@pytest.mark.parametrize("variant", ["z-up", "inches", "mixamo", "dummy root with the travel", "6 channels"])
+@pytest.mark.parametrize("variant", ["z-up", "inches", "mixamo", "unreal", "dummy root with the travel", "6 channels"])
 def test_dev_variants_have_the_same_physics_timing(file, variant, tmp_path):
     original = _written(load_motion(DEV / file), tmp_path, "orig")
     v = _written(VARIANTS[variant](original), tmp_path, variant)
@@ -346,3 +347,101 @@ def test_a_pelvis_side_bone_named_like_a_hip_is_not_the_thigh(jump, tmp_path):
     pa, pb = physics_warp(original, scale=0.7), physics_warp(renamed, scale=0.7)
     t = np.linspace(0, pa.curve.duration, 300)
     assert np.abs(pa.curve(t) - pb.curve(t)).max() < 0.5 / original.fps
+
+
+# ---------------------------------------------------------------------------------------------
+# up from gravity and contacts
+
+def _turned_up(motion, variant_up):
+    """The up axis a file has after V.turn_up(motion, variant_up), from the file's own up."""
+    from retime.motion.frame import up_vector
+    from retime.motion.variants import _TURNS
+
+    v = _TURNS[variant_up] @ up_vector(motion.skeleton.up)
+    k = int(np.argmax(np.abs(v)))
+    return ("+" if v[k] > 0 else "-") + "xyz"[k]
+
+
+FLOOR_VARIANTS = {"as written": lambda m: m, "z-up": lambda m: V.turn_up(m, "+z"), "x-up": lambda m: V.turn_up(m, "+x"),
+                  "-z-up": lambda m: V.turn_up(m, "-z"), "dummy root": lambda m: V.add_dummy_root(m, share=0.5)}
+
+
+def _assert_frame_kept(original, variant_name, tmp_path, factor=1.0):
+    """The variant (and, with ``factor``, rescaled to other units) reads with the up axis the turn
+    gives and the same metres per unit."""
+    base = VARIANTS_UNITS(original, factor)
+    v = _written(FLOOR_VARIANTS[variant_name](base), tmp_path, f"{variant_name}-{factor:g}")
+    expected_up = _turned_up(original, "+z" if variant_name == "z-up" else "+x" if variant_name == "x-up"
+                             else "-z" if variant_name == "-z-up" else "+y")
+    assert v.skeleton.up == expected_up, (variant_name, factor, v.skeleton.up, expected_up)
+    assert v.skeleton.meters_per_unit * factor == pytest.approx(original.skeleton.meters_per_unit, rel=1e-3), \
+        (variant_name, factor, v.skeleton.frame.unit, original.skeleton.frame.unit)
+    return v
+
+
+def VARIANTS_UNITS(motion, factor):
+    return motion if factor == 1.0 else V.rescale(motion, factor)
+
+
+@pytest.fixture(scope="module")
+def kneeling(tmp_path_factory):
+    from floor_poses import kneeling_bow
+
+    # written in inches, as the issue's file was
+    return _written(V.rescale(kneeling_bow(), 1 / UNITS["in"]), tmp_path_factory.mktemp("kneel"), "kneel")
+
+
+def test_a_kneeling_bow_is_read_y_up_in_inches(kneeling, tmp_path):
+    """The issue's kneeling and bowing clip (Y-up, inches) was read +z up at 0.034 m per unit (here
+    the head goes forward, along +x: +x at 0.039 before the fix). Its knees, shins and insteps rest
+    on the floor, the weight over them: +y, inches, under every turn, unit and dummy root."""
+    assert kneeling.skeleton.up == "+y" and kneeling.skeleton.frame.unit == "in"
+    for name in FLOOR_VARIANTS:
+        _assert_frame_kept(kneeling, name, tmp_path)
+    for factor in (UNITS["in"] / UNITS["cm"], UNITS["in"] / UNITS["mm"]):
+        _assert_frame_kept(kneeling, "z-up", tmp_path, factor)
+
+
+@pytest.fixture(scope="module")
+def elephant_file(tmp_path_factory):
+    from floor_poses import elephant
+
+    return _written(elephant(), tmp_path_factory.mktemp("elephant"), "elephant")
+
+
+def test_an_elephant_with_biped_names_is_y_up_and_four_legged(elephant_file, tmp_path):
+    """The issue's elephant (Y-up, metres, 3ds Max Biped names) was read +x at 0.698 m per unit (here
+    +x at 0.46) and physics ran it. Its four feet rest on the floor: +y under every turn and dummy
+    root; its hands (the front feet) bear weight as often as its feet, so physics refuses it with
+    the two-legged sentence whatever its names, and guided and linear retiming still run on it."""
+    m = elephant_file
+    assert m.skeleton.up == "+y" and m.skeleton.frame.limbs is None and "four limbs" in m.skeleton.frame.biped
+    for name in FLOOR_VARIANTS:
+        v = _written(FLOOR_VARIANTS[name](m), tmp_path, name)
+        assert v.skeleton.up == _turned_up(m, {"z-up": "+z", "x-up": "+x", "-z-up": "-z"}.get(name, "+y")), name
+        assert v.skeleton.frame.limbs is None and "four limbs" in v.skeleton.frame.biped, name
+    with pytest.raises(RetimeError, match="physics-based retiming needs a two-legged character.*four limbs"):
+        physics_warp(m, scale=0.7)
+    g = guided_warp(m, duration=0.7 * m.duration)
+    assert g.duration == pytest.approx(0.7 * m.duration, abs=1 / m.fps)
+    assert scale_warp(m.duration, 0.7, m.fps).duration == pytest.approx(0.7 * m.duration, abs=1 / m.fps)
+
+
+@need_dev
+@pytest.mark.parametrize("file", sorted(p.name for p in DEV.glob("*.bvh")) if DEV.is_dir() else [])
+def test_dev_files_keep_their_up_and_units_turned_rescaled_and_rerooted(file, tmp_path):
+    original = _written(load_motion(DEV / file), tmp_path, "orig")
+    for name in ("z-up", "x-up", "dummy root"):
+        _assert_frame_kept(original, name, tmp_path)
+    _assert_frame_kept(original, "as written", tmp_path, original.skeleton.meters_per_unit / UNITS["mm"])
+
+
+def test_a_body_lying_on_its_back_is_read_y_up(tmp_path):
+    """Head level with the feet (read -x before the fix): the back on the floor says +y, under
+    every turn and dummy root, in centimetres."""
+    from floor_poses import lying
+
+    m = _written(V.rescale(lying(), 1 / UNITS["cm"]), tmp_path, "lying")
+    assert m.skeleton.up == "+y" and m.skeleton.frame.unit == "cm"
+    for name in FLOOR_VARIANTS:
+        _assert_frame_kept(m, name, tmp_path)

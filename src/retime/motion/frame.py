@@ -1,12 +1,22 @@
 """The world frame a motion was captured in: its up axis and its length unit, found from the motion.
 
-* **Up** (:func:`detect_up`): the signed world axis along which the head (or, without one, the
-  root) lies above the feet in most frames. Confidence: the share of frames that agree.
+* **Up** (:func:`up_from_contacts`): gravity holds a body on the floor, so along the up axis the
+  lowest points rest on one plane: in most frames some joints lie on the floor level, slow, with the
+  centre of mass over them. This works standing, kneeling, lying, crawling and for animals. Each
+  signed world axis is scored by its frames at rest this way (weighted by how many joints rest, up
+  to :data:`REST_JOINTS`); when the scores leave it open (a clip at rest, nothing moving) the axis
+  along which the head (or the root) lies above the feet in most frames decides (:func:`detect_up`).
+  Confidence: the share of frames whose head is above the feet along it, or, when the contacts
+  overrule that axis, the share of frames at rest on the new one.
+* **Four limbs.** A skeleton named like a biped (3ds Max Biped animals) whose hands rest on the floor
+  in at least :data:`FOUR_LIMB_SHARE` of the frames its feet do bears weight on four limbs: not a
+  biped.
 * **Units** (:func:`detect_units`): segment lengths and standing height, not the rest pose (rest
   poses with bones along +X are common): the thigh + shank length (bone lengths, whatever the pose)
   and the head's height above the lower foot (95th percentile over the clip) give the body's size
   in file units; compared with a typical adult (leg 0.84 m, head joint 1.45 m above the floor),
-  that is a metres-per-unit estimate. It snaps to m, cm, mm, inches, feet or CMU's unit when one is
+  that is a metres-per-unit estimate (the head's height only when the clip stands up at some time:
+  at least :data:`STANDING_RATIO` leg lengths). It snaps to m, cm, mm, inches, feet or CMU's unit when one is
   within a factor 1.3 (sure within 1.15), else it is kept as is (an unusual scale, reported).
 """
 from __future__ import annotations
@@ -17,7 +27,7 @@ import numpy as np
 
 from .fk import forward_kinematics
 from .model import LENGTH_UNITS
-from .rig import Limbs, NotBiped, bone_joints, find_limbs, floating_base, nearest_pair_tips
+from .rig import Limbs, NotBiped, bone_joints, descendants, find_limbs, floating_base, nearest_pair_tips
 
 AXES = {"x": 0, "y": 1, "z": 2}
 UNITS = {k: v for k, v in LENGTH_UNITS.items() if k != "dm"}  # the units files are written in
@@ -26,6 +36,7 @@ UNIT_NAMES = {"m": "metres", "cm": "centimetres", "mm": "millimetres", "in": "in
 TYPICAL_LEG_M = 0.84  # thigh + shank of an adult (hip joint to ankle joint)
 TYPICAL_HEAD_M = 1.45  # head joint above the floor, standing
 SNAP_FACTOR = 1.3
+STANDING_RATIO = 1.3  # head height / leg length of a body standing up (typically 1.45 / 0.84 = 1.73)
 SURE_FACTOR = 1.15
 MAX_FRAMES = 2000  # detection looks at this many frames at most (evenly spread)
 
@@ -99,9 +110,12 @@ class FrameGuess:
     up_given: bool = False  # why the skeleton is not a biped ('' if it is one)
 
 
+def _sample_step(n_frames) -> int:
+    return max(1, int(np.ceil(n_frames / MAX_FRAMES)))
+
+
 def _sample_frames(n_frames):
-    step = max(1, int(np.ceil(n_frames / MAX_FRAMES)))
-    return slice(0, n_frames, step)
+    return slice(0, n_frames, _sample_step(n_frames))
 
 
 def detect_up(positions, top: int, feet) -> tuple[str, float]:
@@ -118,6 +132,110 @@ def detect_up(positions, top: int, feet) -> tuple[str, float]:
         return "+y", 0.0
     best = max(votes, key=votes.get)
     return best, votes[best] / len(v)
+
+
+REST_TOL = 0.03  # of the body's size: a joint this close to the floor level is on it
+REST_SPEED = 0.25  # body sizes per second: a joint on the floor this slow is at rest
+BALANCE_MARGIN = 0.1  # of the body's size: the centre of mass lies over its support, give or take
+REST_JOINTS = 8  # a frame at rest counts its resting joints up to this many
+FLAT_FLOOR = 0.1  # of the body's size: the lowest point stays this close to one level (P5 to P80 of frames)
+MIN_REST = 0.25  # share of frames at rest an axis needs to overrule the head-above-feet axis ...
+OVERRULE = 2.0  # ... and this many times its score
+FOUR_LIMB_SHARE = 0.5
+
+
+def _mass_centre(positions, parents):
+    """(F, 3): the bones' midpoints weighted by their lengths (a body's mass lies along its bones)."""
+    child = np.arange(1, positions.shape[1])
+    a, b = positions[:, child], positions[:, parents[child]]
+    w = np.linalg.norm(a - b, axis=2)[..., None]
+    return (0.5 * (a + b) * w).sum(axis=1) / np.maximum(w.sum(axis=1), 1e-12)
+
+
+@dataclass
+class Rest:
+    """Where the body rests on the floor along one signed axis, per frame."""
+
+    on_floor: np.ndarray  # (F, J) joints on the floor level and slow
+    balanced: np.ndarray  # (F,) some joints rest, with the centre of mass over them
+    flatness: float  # how far the lowest point strays from one level (P5 to P80 of frames), in body sizes
+
+    def score(self) -> float:
+        """Frames at rest, each counting its resting joints (up to REST_JOINTS); 0 off a flat floor."""
+        if self.flatness > FLAT_FLOOR:
+            return 0.0
+        return float(np.mean(self.balanced * np.minimum(self.on_floor.sum(axis=1), REST_JOINTS)))
+
+
+def rest_on(positions, parents, fps, up: str) -> Rest:
+    """How the body rests on a floor whose normal is ``up`` (see :func:`up_from_contacts`);
+    ``positions`` (F, J, 3) world joint positions at ``fps`` frames per second."""
+    lo, hi = positions.min(axis=1), positions.max(axis=1)
+    size = float(np.median(np.linalg.norm(hi - lo, axis=1))) or 1.0
+    k = AXES[up[1]]
+    h = positions[..., k] * (-1.0 if up[0] == "-" else 1.0)
+    lowest = h.min(axis=1)
+    floor = float(np.percentile(lowest, 5))
+    speed = (np.linalg.norm(np.gradient(positions, axis=0), axis=2) * fps if len(positions) > 1
+             else np.zeros(h.shape))
+    on = (h - floor <= REST_TOL * size) & (speed <= REST_SPEED * size)
+    plane = [a for a in range(3) if a != k]
+    q = positions[..., plane]  # (F, J, 2)
+    com = _mass_centre(positions, parents)[:, plane]
+    lo_q = np.where(on[..., None], q, np.inf).min(axis=1)
+    hi_q = np.where(on[..., None], q, -np.inf).max(axis=1)
+    margin = BALANCE_MARGIN * size
+    balanced = on.any(axis=1) & np.all((com >= lo_q - margin) & (com <= hi_q + margin), axis=1)
+    return Rest(on, balanced, (float(np.percentile(lowest, 80)) - floor) / size)
+
+
+def up_from_contacts(positions, parents, fps, prior: str | None = None, head_lift=None,
+                     prior_confidence: float = 0.0) -> tuple[str, float]:
+    """The signed axis along which the body rests on the floor best (see the module docstring), and
+    its confidence: the share of frames at rest on it, or ``prior_confidence`` (the share of frames
+    whose head is above the feet) when ``prior`` stands. ``prior`` (the head-above-feet axis) stands unless another
+    axis is at rest in :data:`MIN_REST` of the frames and scores :data:`OVERRULE` times as much (a
+    clip at rest throughout, against a wall or on a floor, looks alike). The sign of a new axis is
+    the side the head is on (``head_lift``, the median head-minus-feet vector), when it is clear;
+    an upside-down reading is never taken from the contacts alone (a still head rests like a foot)."""
+    rests = {sign + axis: rest_on(positions, parents, fps, sign + axis) for axis in "xyz" for sign in "+-"}
+    scores = {up: r.score() for up, r in rests.items()}
+    if prior is None:
+        best = max(scores, key=scores.get)
+        return best, float(rests[best].balanced.mean())
+    size = float(np.median(np.linalg.norm(positions.max(axis=1) - positions.min(axis=1), axis=1))) or 1.0
+    lift = np.zeros(3) if head_lift is None else np.asarray(head_lift, dtype=float)
+
+    def signed(up):  # the side the head is on, when it is clear
+        k = AXES[up[1]]
+        return ("+" if lift[k] > 0 else "-") + up[1] if abs(lift[k]) > BALANCE_MARGIN * size else up
+
+    floors = {signed(up) for up in rests if up[1] != prior[1] and scores[up] > 0
+              and scores[up] >= OVERRULE * scores[prior] and rests[up].balanced.mean() >= MIN_REST}
+    if not floors:
+        return prior, float(prior_confidence)
+    # floors alike (a body at rest lies on its side as well as it stands): the one the head is highest above
+    best = max(floors, key=lambda up: (round(float(lift[AXES[up[1]]]) * (1 if up[0] == "+" else -1) / size, 1),
+                                       scores[up]))
+    return best, float(rests[best].balanced.mean())
+
+
+def four_limbed(positions, parents, fps, up: str, limbs: Limbs) -> str:
+    """Why the skeleton bears weight on four limbs ('' when it does not): its hands rest on the floor
+    in at least :data:`FOUR_LIMB_SHARE` of the frames its feet do."""
+    if len(limbs.arms) < 2:
+        return ""
+    on = rest_on(positions, parents, fps, up).on_floor
+
+    def resting(ends):
+        return np.any([on[:, descendants(parents, j)].any(axis=1) for j in ends], axis=0)
+
+    feet = resting([leg[2] for leg in limbs.legs.values()])
+    hands = resting([arm[2] for arm in limbs.arms.values()])
+    if not feet.any() or (hands & feet).sum() < FOUR_LIMB_SHARE * feet.sum():
+        return ""
+    return (f"it bears weight on four limbs: its hands rest on the floor in {(hands & feet).sum() / feet.sum():.0%} "
+            "of the frames its feet do")
 
 
 def _leg_length(motion, positions, limbs):
@@ -146,8 +264,8 @@ def detect_units(motion, positions, limbs, up: str):
     cues = []
     if np.isfinite(leg) and leg > 0:
         cues.append(TYPICAL_LEG_M / leg)
-    if limbs.head is not None and stand > 0:
-        cues.append(TYPICAL_HEAD_M / stand)
+    if limbs.head is not None and stand > 0 and not (cues and stand < STANDING_RATIO * leg):
+        cues.append(TYPICAL_HEAD_M / stand)  # only from a clip that stands up at some time (not kneeling, lying)
     if not cues:
         return "unknown", 1.0, "unknown", stand, leg
     estimate = float(np.exp(np.mean(np.log(cues))))
@@ -176,21 +294,29 @@ def detect_frame(motion, up: str | None = None, units=None, declared_units: floa
             named = limbs_by_name(sk)
         except NotBiped:
             named = None
+        prior = lift = None
+        prior_conf = 0.0
         if named is not None:
-            top = named.head if named.head is not None else floating_base(sk)
-            up, up_conf = detect_up(positions, top, [leg[2] for leg in named.legs.values()])
+            top, feet = (named.head if named.head is not None else floating_base(sk)), [l[2] for l in named.legs.values()]
         else:
-            tips = nearest_pair_tips(sk)
-            if tips is not None:
-                up, up_conf = detect_up(positions, floating_base(sk), tips)
-            else:
-                up, up_conf = "+y", 0.0
+            top, feet = floating_base(sk), nearest_pair_tips(sk)
+        if feet is not None:
+            prior, prior_conf = detect_up(positions, top, feet)
+            lift = np.median(positions[:, top] - positions[:, list(feet)].mean(axis=1), axis=0)
+        body = descendants(sk.parents, floating_base(sk))  # a dummy root and its props are no part of the body
+        where = {j: k for k, j in enumerate(body)}
+        body_parents = np.array([where.get(int(sk.parents[j]), -1) for j in body])
+        up, up_conf = up_from_contacts(positions[:, body], body_parents, motion.fps / _sample_step(motion.n_frames),
+                                       prior, lift, prior_conf)
     else:
         up = parse_up(up)
     try:
         limbs = find_limbs(sk, positions, up_vector(up))
+        why = four_limbed(positions, sk.parents, motion.fps / _sample_step(motion.n_frames), up, limbs)
+        if why:
+            raise NotBiped(why)
     except NotBiped as e:
-        why = str(e)
+        limbs, why = None, str(e)
     if units is not None:
         unit, mpu = parse_units(units)
         conf = "given"

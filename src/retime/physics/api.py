@@ -246,9 +246,11 @@ def physics_warp(motion, duration=None, scale=None, gravity=None, mass_factors=N
         report = build_report(spline, pd, regions, fps, info=info,
                               extra={"objective_kind": objective, "gravity": [float(x) for x in file_gravity],
                                      "up": motion.skeleton.up, "meters_per_unit": float(motion.skeleton.meters_per_unit),
-                                     "conform_notes": list(getattr(terms, "conform_notes", [])),
+                                     "conform_notes": [n for n in getattr(terms, "conform_notes", [])
+                                                       if n not in getattr(terms, "conform_warnings", [])],
                                      "source_check": source.as_dict(),
-                                     "warnings": [w for w in [source.message()] if w],
+                                     "warnings": [w for w in [source.message()] if w]
+                                     + list(getattr(terms, "conform_warnings", [])),
                                      "mass_factors": dict(mass_factors or {}), "timings": {k: round(v, 4) for k, v in timings.items()},
                                      "bind_pose_frames": int(getattr(terms, "bind_pose_frames", 0)),
                                      "least_duration": None if not np.isfinite(fastest.duration) else round(fastest.duration, 4)})

@@ -147,6 +147,7 @@ class DynamicsTerms:
     lambda_ref: np.ndarray | None = None
     bind_pose_frames: int = 0  # leading frames held at the first real pose (see bind_pose_frames)
     conform_notes: list = field(default_factory=list)  # what conforming the motion did (dummy root, stretch)
+    conform_warnings: list = field(default_factory=list)  # those of the notes that are warnings (bones made rigid)
 
     def joint_torque_limits(self, torque_scale=1.0) -> dict[str, np.ndarray]:
         """{joint: (3,) symmetric limit, N m} of every ball joint, e.g. for ``write_body``."""
@@ -522,7 +523,8 @@ def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smooth
                           rotations=rotations, contact=contact, root_pos=root_pos, shape=shape, skeleton=sk,
                           smoothing=smoothing, noise_band=noise_band,
                           corner_rows=corner_rows(tree, body, sk),
-                          friction=body.friction, bind_pose_frames=held, conform_notes=conf.notes())
+                          friction=body.friction, bind_pose_frames=held, conform_notes=conf.notes(),
+                          conform_warnings=conf.warnings())
     terms.corners, terms.root_origin, terms.com = body_points(terms, path)
     terms.sole_path = (np.array(path.root_pos), path.quats)
     del path
