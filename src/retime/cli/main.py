@@ -16,10 +16,41 @@ COMMANDS = ["info", "convert", "linear", "edit", "plot", "render", "apply", "dem
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse, but a usage error is one line (what is wrong, where to look) and exit code 2."""
+    """argparse, but a usage error is one line (what is wrong, where to look) and exit code 2, and an
+    option is only its whole name: an abbreviation (``--scal`` for ``--scale``) would change meaning the
+    day another option starting the same way is added."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("allow_abbrev", False)  # the subcommands' parsers are made by this class too
+        super().__init__(*args, **kwargs)
 
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+
+
+def unrecognized(extra: list[str], parser: argparse.ArgumentParser) -> str:
+    """The error for arguments ``parser`` does not know, with the closest option to a misspelt one."""
+    import difflib
+
+    message = f"unrecognized arguments: {' '.join(extra)}"
+    options = [o for action in parser._actions for o in action.option_strings]
+    for word in extra:
+        if word.startswith("--"):
+            close = difflib.get_close_matches(word.split("=", 1)[0], options, n=1, cutoff=0.7)
+            if close:
+                return f"{message}; did you mean {close[0]}?"
+    return message
+
+
+def parse(parser: argparse.ArgumentParser, argv=None) -> argparse.Namespace:
+    """``parser.parse_args``, but an unknown argument is reported by the subcommand's parser, which
+    points to its own --help (``retime linear --help``, not ``retime --help``) and suggests a close match."""
+    args, extra = parser.parse_known_args(argv)
+    if extra:
+        subcommands = next((a.choices for a in parser._actions if isinstance(a, argparse._SubParsersAction)), {})
+        command = subcommands.get(getattr(args, "command", None), parser)
+        command.error(unrecognized(extra, command))
+    return args
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -39,7 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parse(parser, argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
