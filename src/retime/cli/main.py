@@ -65,7 +65,29 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         importlib.import_module(f"{__package__}.{name}").register(sub)
+    for name, command in sub.choices.items():
+        if name != "demo":  # the demo's --clip takes a bundled clip's name itself
+            command.epilog = with_bundled_note(command.epilog)
     return parser
+
+
+def with_bundled_note(epilog: str | None) -> str | None:
+    """An epilog whose examples name bundled clips (``16_06.amc``), with where those are: a command reads a
+    path, and the name alone is found only in the folder that holds the clip."""
+    import re
+
+    from ..data import CMU_DIR
+
+    named = sorted({m for m in re.findall(r"\b[\w.]+\.(?:amc|bvh)\b", epilog or "") if (CMU_DIR / m).is_file()})
+    if not named:
+        return epilog
+    import textwrap
+
+    clips = ", ".join(named)
+    note = (f"({clips} {'is a clip' if len(named) == 1 else 'are clips'} bundled with retime: give the path, "
+            f"src/retime/data/cmu/{named[0]} in a clone, or the one python3 -c \"from retime.data import "
+            f"bundled_path; print(bundled_path('{named[0]}'))\" prints.)")
+    return f"{epilog}\n\n{textwrap.fill(note, width=100, break_on_hyphens=False)}"
 
 
 def main(argv=None) -> int:
