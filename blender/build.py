@@ -37,7 +37,7 @@ def build(out_dir: Path) -> Path:
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
     parser.add_argument("-o", "--output-dir", type=Path, default=HERE.parent / "dist", help="default: dist/")
     args = parser.parse_args(argv)
     print(build(args.output_dir))

@@ -276,6 +276,26 @@ def test_absurd_output_lengths_are_refused(capsys, clip, flags, message):
     fails_cleanly(capsys, ["linear", clip / "16_15.amc", "-o", out, *flags], message, out=out)
 
 
+def test_a_misspelt_option_points_to_the_command_and_suggests_the_name(capsys, clip):
+    """--duraton pointed to 'retime --help' and suggested nothing."""
+    out = clip / "o.bvh"
+    fails_cleanly(capsys, ["linear", clip / "16_15.amc", "-o", out, "--duraton", "2"], "--duraton",
+                  "did you mean --duration?", "(see 'retime linear --help')", out=out)
+    fails_cleanly(capsys, ["physics", clip / "16_15.amc", "-o", out, "--gravity-scal=0.5"],
+                  "did you mean --gravity-scale?", "(see 'retime physics --help')", out=out)
+
+
+def test_an_abbreviated_option_is_not_taken_for_the_whole(capsys, clip):
+    """--scal 0.5 was silently --scale 0.5: an option added later could change what an old command means."""
+    from retime.cli.main import build_parser
+
+    out = clip / "o.bvh"
+    fails_cleanly(capsys, ["linear", clip / "16_15.amc", "-o", out, "--scal", "0.5"], "did you mean --scale?", out=out)
+    parser = build_parser()
+    (commands,) = [a.choices for a in parser._actions if a.choices and "linear" in a.choices]
+    assert not parser.allow_abbrev and not any(p.allow_abbrev for p in commands.values())
+
+
 def test_guided_free_and_fast_is_refused(capsys, clip):
     """--free --fast silently ran the exact search (and said "(exact; ...)"): the heuristic needs a fixed
     output duration, so the combination is one line, before any search."""

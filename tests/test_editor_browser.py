@@ -230,3 +230,34 @@ def test_drag_latency(browser, server, method, capsys, shots):
     assert med < 3000
     assert not errors, errors
     page.close()
+
+
+def test_a_headless_screenshot_shows_the_3d_view_and_a_rounded_rate(tmp_path):
+    """As a user takes one (README): `chromium --headless --use-angle=swiftshader --screenshot`. Without
+    that flag this machine's headless Chromium draws an empty 3-D view. A clip captured at
+    119.87532965715656 Hz (jumping.bvh's rate) is headed "119.875 Hz", not every digit of the float."""
+    import subprocess
+
+    from PIL import Image
+
+    from retime.editor.server import BackgroundServer, create_app, load_clip
+    from retime.motion import load_motion, save_bvh
+
+    chromium = require_browser()
+    motion = load_motion(bundled_path(CLIP)).frames(slice(0, 240))
+    motion.fps = 119.87532965715656
+    save_bvh(motion, tmp_path / "odd_rate.bvh")
+    flags = ["--headless", "--no-sandbox", "--hide-scrollbars", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+             "--window-size=1400,900", "--virtual-time-budget=8000"]
+    with BackgroundServer(create_app(load_clip(tmp_path / "odd_rate.bvh"), tmp_path)) as url:
+        shot = tmp_path / "editor.png"
+        subprocess.run([chromium, *flags, f"--screenshot={shot}", url + "/"], capture_output=True, timeout=120)
+        dom = subprocess.run([chromium, *flags, "--dump-dom", url + "/"], capture_output=True, text=True,
+                             timeout=120).stdout
+    assert "frames at 119.875 Hz" in dom, dom[:2000]
+    with Image.open(shot) as im:
+        view = np.asarray(im.convert("RGB").crop((15, 100, 1070, 400)), dtype=int)  # the 3-D view, below its labels
+    r, g, b = view[..., 0], view[..., 1], view[..., 2]
+    amber = np.sum((r > 170) & (g > 90) & (g < 190) & (b < 90))  # the retimed figure
+    blue = np.sum((b > 150) & (r < 140) & (b - r > 50))  # the original
+    assert amber > 100 and blue > 100, (amber, blue)

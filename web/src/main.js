@@ -350,7 +350,7 @@ async function start() {
     solution: info.solution,
   });
   const c = info.clip;
-  $("clipinfo").textContent = `${c.name} · ${c.n_frames} frames at ${c.fps} Hz · ${c.duration.toFixed(2)} s`
+  $("clipinfo").textContent = `${c.name} · ${c.n_frames} frames at ${+c.fps.toPrecision(6)} Hz · ${c.duration.toFixed(2)} s`
     + (c.reference ? ` · reference ${c.reference}` : "");
   $("label-original").innerHTML = `<span class="swatch original"></span>Original · ${c.duration.toFixed(2)} s`;
   buildMethods();

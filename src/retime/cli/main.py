@@ -16,10 +16,41 @@ COMMANDS = ["info", "convert", "linear", "edit", "plot", "render", "apply", "dem
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse, but a usage error is one line (what is wrong, where to look) and exit code 2."""
+    """argparse, but a usage error is one line (what is wrong, where to look) and exit code 2, and an
+    option is only its whole name: an abbreviation (``--scal`` for ``--scale``) would change meaning the
+    day another option starting the same way is added."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("allow_abbrev", False)  # the subcommands' parsers are made by this class too
+        super().__init__(*args, **kwargs)
 
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+
+
+def unrecognized(extra: list[str], parser: argparse.ArgumentParser) -> str:
+    """The error for arguments ``parser`` does not know, with the closest option to a misspelt one."""
+    import difflib
+
+    message = f"unrecognized arguments: {' '.join(extra)}"
+    options = [o for action in parser._actions for o in action.option_strings]
+    for word in extra:
+        if word.startswith("--"):
+            close = difflib.get_close_matches(word.split("=", 1)[0], options, n=1, cutoff=0.7)
+            if close:
+                return f"{message}; did you mean {close[0]}?"
+    return message
+
+
+def parse(parser: argparse.ArgumentParser, argv=None) -> argparse.Namespace:
+    """``parser.parse_args``, but an unknown argument is reported by the subcommand's parser, which
+    points to its own --help (``retime linear --help``, not ``retime --help``) and suggests a close match."""
+    args, extra = parser.parse_known_args(argv)
+    if extra:
+        subcommands = next((a.choices for a in parser._actions if isinstance(a, argparse._SubParsersAction)), {})
+        command = subcommands.get(getattr(args, "command", None), parser)
+        command.error(unrecognized(extra, command))
+    return args
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -34,12 +65,34 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         importlib.import_module(f"{__package__}.{name}").register(sub)
+    for name, command in sub.choices.items():
+        if name != "demo":  # the demo's --clip takes a bundled clip's name itself
+            command.epilog = with_bundled_note(command.epilog)
     return parser
+
+
+def with_bundled_note(epilog: str | None) -> str | None:
+    """An epilog whose examples name bundled clips (``16_06.amc``), with where those are: a command reads a
+    path, and the name alone is found only in the folder that holds the clip."""
+    import re
+
+    from ..data import CMU_DIR
+
+    named = sorted({m for m in re.findall(r"\b[\w.]+\.(?:amc|bvh)\b", epilog or "") if (CMU_DIR / m).is_file()})
+    if not named:
+        return epilog
+    import textwrap
+
+    clips = ", ".join(named)
+    note = (f"({clips} {'is a clip' if len(named) == 1 else 'are clips'} bundled with retime: give the path, "
+            f"src/retime/data/cmu/{named[0]} in a clone, or the one python3 -c \"from retime.data import "
+            f"bundled_path; print(bundled_path('{named[0]}'))\" prints.)")
+    return f"{epilog}\n\n{textwrap.fill(note, width=100, break_on_hyphens=False)}"
 
 
 def main(argv=None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parse(parser, argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
