@@ -27,9 +27,10 @@ def checked(tmp_path_factory):
     assert code == 0, err
     exe = retime_wrapper(tmp)
     addon = build_addon(tmp / "dist")
-    run_bpy("check_driver.py", addon, tmp / "16_06.bvh", tmp, tmp / "results.json",
-            env=blender_env(tmp, RETIME_EXECUTABLE=str(exe)))
+    done = run_bpy("check_driver.py", addon, tmp / "16_06.bvh", tmp, tmp / "results.json",
+                   env=blender_env(tmp, RETIME_EXECUTABLE=str(exe)))
     result = json.loads((tmp / "results.json").read_text())
+    result["printed"] = done.stdout + done.stderr  # Blender prints an operator's reports when it has no window
     code, _, err = run_retime("check", tmp / "first" / "source.bvh", "--report", tmp / "cli.json")
     assert code in (0, 1), err
     return result, json.loads((tmp / "cli.json").read_text())
@@ -94,6 +95,12 @@ def test_the_character_is_untouched_and_a_rerun_replaces(checked):
     assert result["force_length_again"] == 2.0
     assert set(result["in_collection"]) == set(first["objects"]) and len(first["objects"]) == 6
     assert result["cleared"] == {"objects": [], "collections": [], "actions": [], "markers": [["96", 150]]}
+
+
+def test_the_verdict_is_reported(checked):
+    result, report = checked
+    assert report["verdict"].startswith("physical as captured")
+    assert f"Check '16_06': {report['verdict']}" in result["printed"], result["printed"][-2000:]
 
 
 def test_no_armature_is_one_line(checked):
