@@ -192,7 +192,8 @@ def test_zip_is_an_extension(tmp_path):
     """The zip holds the manifest and __init__.py at its top, the shared armature module, and nothing else."""
     addon = build_addon(tmp_path)
     names = set(zipfile.ZipFile(addon).namelist())
-    assert {"blender_manifest.toml", "__init__.py", "operator.py", "apply.py", "runner.py", "armature.py"} == names
+    assert {"blender_manifest.toml", "__init__.py", "operator.py", "apply.py", "runner.py", "check_view.py",
+            "armature.py"} == names
     import tomllib
 
     manifest = tomllib.loads(zipfile.ZipFile(addon).read("blender_manifest.toml").decode())

@@ -3,11 +3,13 @@
 The add-on exports the armature's animation as BVH, runs ``retime linear|guided|physics`` (a program of a
 normal Python environment: it needs NumPy 2, SciPy and numba, which Blender's Python lacks) and puts the
 timing curve it returns on the armature, baked into a new action or as an NLA strip's animated time.
+Check (``retime check``) shows how physical the action is: the residual force as a curve, the worst
+frames as markers, the feet's contact forces as arrows (:mod:`.check_view`).
 Its panel sits in the sidebar (N) of the Dope Sheet and of the NLA editor, tab "Retime".
 """
 import bpy
 
-from . import operator
+from . import check_view, operator
 from .runner import RetimeAddonError, retime_executable
 
 
@@ -73,6 +75,7 @@ def draw_panel(layout, context):
     op.duration = settings.duration if settings.timing == "DURATION" else 0.0
     op.reference = settings.reference if settings.method == "guided" else ""
     op.gravity_scale, op.mass = settings.gravity_scale, settings.mass if settings.method == "physics" else ""
+    check_view.draw_rows(layout, context)
 
 
 class RetimePanel:
@@ -94,7 +97,8 @@ class RETIME_PT_nla(RetimePanel, bpy.types.Panel):
     bl_space_type = "NLA_EDITOR"
 
 
-CLASSES = (RetimePreferences, RetimeSettings, operator.RETIME_OT_retime, RETIME_PT_dopesheet, RETIME_PT_nla)
+CLASSES = (RetimePreferences, RetimeSettings, operator.RETIME_OT_retime, *check_view.CLASSES, RETIME_PT_dopesheet,
+           RETIME_PT_nla)
 
 
 def register():

@@ -67,25 +67,66 @@ def _output_frames(method, duration, scale, n_source, fps):
     return n_source if method == "guided" else None
 
 
+def animated_armature(context, verb):
+    """The active armature, its action and the action's slot (None before Blender 4.4), or the one-line
+    reason there is nothing to ``verb``."""
+    obj = context.active_object
+    if obj is None:
+        raise RetimeAddonError(f"no active object: select the armature to {verb}")
+    if obj.type != "ARMATURE":
+        raise RetimeAddonError(f"the active object {obj.name!r} is a {obj.type.lower()}, not an armature: "
+                               f"select the armature to {verb}")
+    adt = obj.animation_data
+    if adt is not None and adt.use_tweak_mode:
+        raise RetimeAddonError(f"{obj.name!r} is in NLA tweak mode: leave it (Tab in the NLA editor) first")
+    if adt is None or adt.action is None:
+        raise RetimeAddonError(f"the armature {obj.name!r} has no action to {verb}: assign one in the Action Editor")
+    return obj, adt.action, getattr(adt, "action_slot", None)
+
+
+def export_bvh(context, obj, action, slot, frames, fps, path):
+    """The armature ``obj`` playing ``action`` alone (NLA muted) sampled at every frame of ``frames``
+    (first, last), written as BVH to ``path``; returns its hierarchy. The armature is left as it was."""
+    adt, scene = obj.animation_data, context.scene
+    saved = adt.action, getattr(adt, "action_slot", None), adt.use_nla, scene.frame_current
+    try:
+        adt.use_nla = False
+        if action is not adt.action:
+            armature.assign_action(obj, action, slot)
+        hierarchy, poses, world = armature.sample_pose(context, obj, range(frames[0], frames[1] + 1))
+        text = armature.BvhPose(hierarchy, poses, world).text(fps)
+    except armature.ArmatureError as e:
+        raise RetimeAddonError(str(e)) from None
+    finally:
+        if adt.action is not saved[0]:
+            armature.assign_action(obj, saved[0], saved[1])
+        adt.use_nla = saved[2]
+        scene.frame_set(saved[3])
+    with open(path, "w", newline="\n") as f:
+        f.write(text)
+    return hierarchy
+
+
+def exchange_folder(given, prefix):
+    """(folder, whether to keep it): the folder the user gave for retime's files, made if need be, else a
+    new temporary one (removed when the job ends)."""
+    if not given.strip():
+        return tempfile.mkdtemp(prefix=prefix), False
+    folder = bpy.path.abspath(given.strip())
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError as e:
+        raise RetimeAddonError(f"cannot use the folder {folder} for retime's files: {e.strerror}") from None
+    return folder, True
+
+
 class Job:
     """One retime of one armature: export, run, apply; all state restored or cleaned on failure."""
 
     def __init__(self, context, props):
         self.props = props
         scene = context.scene
-        obj = context.active_object
-        if obj is None:
-            raise RetimeAddonError("no active object: select the armature to retime")
-        if obj.type != "ARMATURE":
-            raise RetimeAddonError(f"the active object {obj.name!r} is a {obj.type.lower()}, not an armature: "
-                                   "select the armature to retime")
-        adt = obj.animation_data
-        if adt is not None and adt.use_tweak_mode:
-            raise RetimeAddonError(f"{obj.name!r} is in NLA tweak mode: leave it (Tab in the NLA editor) first")
-        if adt is None or adt.action is None:
-            raise RetimeAddonError(f"the armature {obj.name!r} has no action to retime: assign one in the Action Editor")
-        self.obj, self.action = obj, adt.action
-        self.slot = getattr(adt, "action_slot", None)
+        self.obj, self.action, self.slot = animated_armature(context, "retime")
         self.fps = armature.scene_fps(scene)
         self.start, self.end = armature.frame_range(self.action)
         if self.end - self.start < 1:
@@ -106,15 +147,7 @@ class Job:
             self.reference = bpy.data.actions.get(props.reference)
             if self.reference is None:
                 raise RetimeAddonError(f"no action named {props.reference!r} for the reference")
-        self.keep = bool(props.exchange_folder.strip())
-        if self.keep:
-            self.folder = bpy.path.abspath(props.exchange_folder.strip())
-            try:
-                os.makedirs(self.folder, exist_ok=True)
-            except OSError as e:
-                raise RetimeAddonError(f"cannot use the folder {self.folder} for retime's files: {e.strerror}") from None
-        else:
-            self.folder = tempfile.mkdtemp(prefix="retime-blender-")
+        self.folder, self.keep = exchange_folder(props.exchange_folder, "retime-blender-")
         self.run = None
 
     # -- the stages ---------------------------------------------------------------------------------
@@ -178,25 +211,7 @@ class Job:
 
     # -- helpers -------------------------------------------------------------------------------------
     def _export(self, context, action, slot, frames, path):
-        """The armature playing ``action`` alone (NLA muted) sampled at every frame, as BVH."""
-        adt, scene = self.obj.animation_data, context.scene
-        saved = adt.action, getattr(adt, "action_slot", None), adt.use_nla, scene.frame_current
-        try:
-            adt.use_nla = False
-            if action is not adt.action:
-                armature.assign_action(self.obj, action, slot)
-            hierarchy, poses, world = armature.sample_pose(context, self.obj, range(frames[0], frames[1] + 1))
-            text = armature.BvhPose(hierarchy, poses, world).text(self.fps)
-        except armature.ArmatureError as e:
-            raise RetimeAddonError(str(e)) from None
-        finally:
-            if adt.action is not saved[0]:
-                armature.assign_action(self.obj, saved[0], saved[1])
-            adt.use_nla = saved[2]
-            scene.frame_set(saved[3])
-        with open(path, "w", newline="\n") as f:
-            f.write(text)
-        return hierarchy
+        return export_bvh(context, self.obj, action, slot, frames, self.fps, path)
 
     def _slot_for(self, action):
         slots = getattr(action, "slots", None)

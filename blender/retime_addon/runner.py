@@ -61,14 +61,15 @@ class Run:
             except subprocess.TimeoutExpired:
                 self.process.kill()
 
-    def result(self) -> str:
-        """The program's last line of output once it succeeded; its one-line error otherwise."""
+    def result(self, success=(0,)) -> str:
+        """The program's last line of output once it succeeded (an exit code in ``success``: ``retime
+        check`` exits 1 for a clip that is not physical); its one-line error otherwise."""
         code = self.process.wait()
         with open(self.out_path, errors="replace") as f:
             out = [ln.strip() for ln in f if ln.strip()]
         with open(self.err_path, errors="replace") as f:
             err = [ln.strip() for ln in f if ln.strip()]
-        if code == 0:
+        if code in success:
             return out[-1] if out else ""
         errors = [ln for ln in err if ": error: " in ln]
         said = errors[-1] if errors else (err[-1] if err else f"exit code {code}")

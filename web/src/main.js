@@ -318,6 +318,42 @@ function updateScrub() {
     marks.appendChild(m);
   }
   axis.max = niceMax(Math.max(state.clip.duration, state.solution.duration) * 1.04);
+  drawResidualStrip();
+}
+
+// The clip's own physics (retime check), under the scrub bar where the original plays: each source
+// frame's residual, grey below the threshold, red above (full red at 1 body weight).
+function drawResidualStrip() {
+  const strip = $("residual-strip"), check = state.check;
+  strip.replaceChildren();
+  if (!check || !check.available) return;
+  const T = totalTime(), fps = state.clip.fps, r = check.residual;
+  for (let i = 0; i < r.length;) {
+    const over = r[i] > check.threshold;
+    let j = i + 1;
+    while (j < r.length && (r[j] > check.threshold) === over && (!over || Math.abs(r[j] - r[i]) < 0.1)) j++;
+    const seg = document.createElement("div");
+    seg.className = over ? "res over" : "res";
+    seg.style.left = `${(100 * i) / fps / T}%`;
+    seg.style.width = `${Math.max((100 * (j - i)) / fps / T, 0.15)}%`;
+    if (over) seg.style.opacity = String(0.45 + 0.55 * Math.min(1, r[i]));
+    seg.title = over ? `frames ${i}-${j - 1}: ${r[i].toFixed(2)} body weights of force no contact gives` : "";
+    strip.appendChild(seg);
+    i = j;
+  }
+}
+
+async function loadCheck() {
+  try {
+    state.check = await api(`/api/session/${state.session}/check`);
+  } catch (e) {
+    state.check = { available: false, reason: e.message };
+  }
+  const c = state.check;
+  $("check-info").textContent = c.available ? `physics of the original: ${c.verdict}` : `no physics check: ${c.reason}`;
+  if (viewer && c.available) viewer.setCheck(c);
+  drawResidualStrip();
+  state.dirty = true;
 }
 
 function niceMax(v) { return v; }
@@ -412,6 +448,7 @@ async function start() {
   connect();
   requestAnimationFrame(tick);
   state.ready = true;
+  loadCheck(); // seconds of physics on the server: the page works meanwhile
 }
 
 function showViewerMessage(text) {

@@ -132,9 +132,60 @@ export class Viewer {
     return out;
   }
 
+  // The clip's own contact forces (retime check, per source frame: body weights and metres, y up)
+  // as arrows on the original figure: one per foot at its centre of pressure, and the residual
+  // force (what no contact gives) at the centre of mass; one body weight is half the body's height.
+  setCheck(check) {
+    this.check = check;
+    this.forceLength = 0.5 * this.height;
+    const r = 0.012 * this.height;
+    const make = (color) => {
+      // a solid arrow drawn over the figures: a unit shaft along +y and a head, scaled per frame
+      const mat = new THREE.MeshBasicMaterial({ color, depthTest: false, transparent: true, opacity: 0.9 });
+      const shaft = new THREE.Mesh(new THREE.CylinderGeometry(r, r, 1, 8).translate(0, 0.5, 0), mat);
+      const head = new THREE.Mesh(new THREE.ConeGeometry(2.6 * r, 1, 12).translate(0, -0.5, 0), mat);
+      const a = new THREE.Group();
+      a.add(shaft, head);
+      a.renderOrder = 10;
+      shaft.renderOrder = head.renderOrder = 10;
+      a.visible = false;
+      a.setLength = (len) => {
+        const h = Math.min(8 * r, 0.4 * len);
+        shaft.scale.set(1, Math.max(len - h, 1e-4), 1);
+        head.scale.set(1, h, 1);
+        head.position.y = len;
+      };
+      a.setDirection = (dir) => a.quaternion.setFromUnitVectors(UP, dir);
+      this.scene.add(a);
+      return a;
+    };
+    this.arrows = { left: make(0x4cc3ff), right: make(0x9be564), residual: make(0xff4d4d) };
+  }
+
+  _showForces(u) {
+    if (!this.check) return;
+    const f = Math.min(Math.max(Math.round(u), 0), this.check.residual.length - 1);
+    const shift = this.offset.clone().multiplyScalar(-1); // the original stands on the left
+    const place = (arrow, force, at) => {
+      const v = new THREE.Vector3().fromArray(force), len = v.length();
+      arrow.visible = len > 0.02;
+      arrow.userData.length = len * this.forceLength;
+      if (!arrow.visible) return;
+      arrow.position.fromArray(at).add(shift);
+      arrow.setDirection(v.multiplyScalar(1 / len));
+      arrow.setLength(len * this.forceLength);
+    };
+    for (const foot of ["left", "right"]) place(this.arrows[foot], this.check.feet[foot].force[f], this.check.feet[foot].point[f]);
+    place(this.arrows.residual, this.check.residual_force[f], this.check.com[f]);
+    this.shownForces = { frame: f, ...Object.fromEntries(Object.entries(this.arrows).map(([k, a]) => [k, a.visible
+      ? { origin: a.position.toArray(), direction: new THREE.Vector3(0, 1, 0).applyQuaternion(a.quaternion).toArray(), length: a.userData.length }
+      : null])) };
+  }
+
   // Draw: original at source frame uOrig, retimed at source frame uRetimed.
   show(uOrig, uRetimed) {
     const poses = [this._pose(0, uOrig), this._pose(1, uRetimed)];
+    this._showForces(uOrig);
     const m = new THREE.Matrix4(), q = new THREE.Quaternion(), a = new THREE.Vector3(), b = new THREE.Vector3();
     const d = new THREE.Vector3(), s = new THREE.Vector3();
     poses.forEach((pose, k) => {

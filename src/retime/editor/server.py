@@ -29,6 +29,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from ..errors import RetimeError
 from ..motion.frame import to_y_up
 from ..motion import end_site_positions, forward_kinematics, load_motion
+from .insight import ClipInsight
 from .methods import Clip, method_catalog
 from .sessions import SessionStore
 
@@ -199,6 +200,7 @@ def create_app(clip: Clip, outdir, *, static_dir=STATIC_DIR, allowed_hosts=LOOPB
     store = SessionStore(clip, outdir, clip.motion.fps, max_sessions=max_sessions)
     static = _read_static(Path(static_dir))
     positions_bytes, skeleton = skeleton_payload(clip)
+    insight = ClipInsight(clip.motion)
     executor = concurrent.futures.ThreadPoolExecutor(max_workers=workers or min(8, (os.cpu_count() or 2) * 2),
                                                      thread_name_prefix="retime-solve")
 
@@ -301,6 +303,11 @@ def create_app(clip: Clip, outdir, *, static_dir=STATIC_DIR, allowed_hosts=LOOPB
         session_or_404(sid)
         return Response(positions_bytes, media_type="application/octet-stream",
                         headers={"cache-control": "no-store"})
+
+    @app.get("/api/session/{sid}/check")
+    async def check(sid: str):
+        session_or_404(sid)
+        return await in_thread(insight.payload)
 
     @app.post("/api/session/{sid}/edit")
     async def edit(sid: str, request: Request):

@@ -28,7 +28,9 @@ Modules, in the order the method runs: :mod:`.body` (segments, soles, limits), :
 kernels), :mod:`.dynamics` (a, b, c, N per frame), :mod:`.regions` (feasible polygons),
 :mod:`.objective` (Eq. 14 baked per frame), :mod:`.globalstart` and :mod:`.optimize` (the timing
 spline, :mod:`.spline`), :mod:`.feasibility` and :mod:`.report` (what the result says);
-:mod:`.api` runs them in order and :mod:`.method` puts them behind the contract.
+:mod:`.api` runs them in order and :mod:`.method` puts them behind the contract. :mod:`.check`
+(with :mod:`.plausibility` and :mod:`.check_forces`: the feet's forces and the centre of mass per
+frame) is ``retime check``.
 """
 
 __all__ = ["physics_warp", "PhysicsResult", "check_clip", "ClipCheck"]

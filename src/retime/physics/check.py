@@ -96,7 +96,8 @@ class ClipCheck:
         if self.forces is not None:
             for i, frame in enumerate(frames):
                 frame.update(self.forces.frame(i))
-        return {"summary": self.summary(), "verdict": self.verdict_line(), "frames": frames}
+        return {"summary": self.summary(), "verdict": self.verdict_line(), "residual_threshold": OFF_RESIDUAL,
+                "frames": frames}
 
     def verdict_line(self) -> str:
         s = self.summary()
