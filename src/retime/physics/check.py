@@ -57,11 +57,15 @@ class ClipCheck:
 
     def worst_frames(self, k: int = 5, apart: float = 0.1) -> list[int]:
         """Up to ``k`` frames of the largest residual over a quarter body weight, ``apart`` seconds
-        from each other (distinct moments, not one landing's neighbouring frames)."""
+        from each other (distinct moments, not one landing's neighbouring frames), among the frames
+        the verdict judged by their residual (not those next to a flight that falls at g)."""
         out = []
         gap = max(1, int(round(apart * self.fps)))
-        for i in np.argsort(-self.residual, kind="stable"):
-            if self.residual[i] <= OFF_RESIDUAL or len(out) == k:
+        judged = self.verdict.judged
+        residual = self.residual if judged is None or len(judged) != len(self.residual) else \
+            np.where(judged, self.residual, 0.0)
+        for i in np.argsort(-residual, kind="stable"):
+            if residual[i] <= OFF_RESIDUAL or len(out) == k:
                 break
             if all(abs(int(i) - j) > gap for j in out):
                 out.append(int(i))
@@ -101,8 +105,12 @@ class ClipCheck:
 
     def verdict_line(self) -> str:
         s = self.summary()
-        numbers = (f"{s['off_share']:.0%} of frames over {OFF_RESIDUAL:.0%} body weight of residual "
-                   f"(median {s['median_residual']:.2f}, max {s['max_residual']:.2f})")
+        share = self.verdict.judged_share
+        which = "frames" if share == 1.0 else f"the {share:.0%} of frames away from flights"
+        judged = self.verdict.judged
+        top = self.residual[judged] if judged is not None and len(judged) == len(self.residual) else self.residual
+        numbers = (f"{s['off_share']:.0%} of {which} over {OFF_RESIDUAL:.0%} body weight of residual "
+                   f"(median {s['median_residual']:.2f}, max {float(top.max()) if top.size else 0.0:.2f})")
         if s["flight_g"] is not None:
             numbers += f"; in flight the centre of mass falls at {s['flight_g']:.2f} g"
         if self.physical:

@@ -86,7 +86,11 @@ class SourceCheck:
     flight: FlightGravity | None = None  # the flights' parabolas (None: not measured)
     travel: float = 0.0  # m/s, the root's mean horizontal travel over 1 s
     slide: float = 0.0  # m/s, median horizontal speed of the foot points bearing on the floor
-    judged_share: float = 1.0  # share of the frames the residual judged (the rest: near flights)
+    judged: np.ndarray | None = None  # (F,) bool: the frames the residual judged (None: all; the rest are near flights)
+
+    @property
+    def judged_share(self) -> float:
+        return 1.0 if self.judged is None or not self.judged.size else float(self.judged.mean())
 
     @property
     def causes(self) -> list[str]:
@@ -224,6 +228,8 @@ def check_source(motion, terms, regions) -> SourceCheck:
         conf = (", as given" if up_given else f", {frame.up_confidence:.0%} of frames agree") if frame is not None else ""
         found.append(Cause("up_axis", f"the up axis is wrong (read as {motion.skeleton.up if frame is None else frame.up}"
                                       f"{conf}; give --up)"))
+        # the floor, the feet and the flights are all measured along the wrong axis: nothing else to say
+        return SourceCheck(False, off_all, med_all, found, flight)
     frozen = _frozen(motion)
     root = np.asarray(terms.root_origin)[::spf]
     still = len(root) > 2 and float(np.max(np.std(root, axis=0))) < STILL_ROOT_M
@@ -275,4 +281,4 @@ def check_source(motion, terms, regions) -> SourceCheck:
                                               f"weight of extra force at their own timing (median {med:.2f}): hand or "
                                               "knee contacts (cartwheels, crawls), props, noisy tracking, or keyframed "
                                               "motion that was never physical"))
-    return SourceCheck(not found, off, med, found, flight, travel, slide, float(judged.mean()) if judged.size else 1.0)
+    return SourceCheck(not found, off, med, found, flight, travel, slide, judged)
