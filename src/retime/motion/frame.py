@@ -189,6 +189,9 @@ def rest_on(positions, parents, fps, up: str) -> Rest:
     return Rest(on, balanced, (float(np.percentile(lowest, 80)) - floor) / size)
 
 
+HEAD_ABOVE_ALWAYS = 0.95  # share of frames with the head above the feet
+
+
 def up_from_contacts(positions, parents, fps, prior: str | None = None, head_lift=None,
                      prior_confidence: float = 0.0) -> tuple[str, float]:
     """The signed axis along which the body rests on the floor best (see the module docstring), and
@@ -210,6 +213,10 @@ def up_from_contacts(positions, parents, fps, prior: str | None = None, head_lif
         k = AXES[up[1]]
         return ("+" if lift[k] > 0 else "-") + up[1] if abs(lift[k]) > BALANCE_MARGIN * size else up
 
+    if scores[prior] == 0 and prior_confidence >= HEAD_ABOVE_ALWAYS:
+        # nothing rests on any floor under a head that is always above the feet: the body hangs (a
+        # root-locked export), and a still torso would rest against a 'wall' on another axis
+        return prior, float(prior_confidence)
     floors = {signed(up) for up in rests if up[1] != prior[1] and scores[up] > 0
               and scores[up] >= OVERRULE * scores[prior] and rests[up].balanced.mean() >= MIN_REST}
     if not floors:
