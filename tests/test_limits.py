@@ -6,6 +6,7 @@ import pytest
 
 from retime.cli import main
 from retime.data import bundled_path
+from retime.errors import FormatError
 from retime.motion import load_motion, save_bvh
 
 CLIP = bundled_path("16_06.amc")
@@ -63,12 +64,23 @@ def test_rows_beyond_the_declared_frames_are_said(tmp_path, capsys):
 
 
 def test_offsets_that_read_back_are_written(tmp_path):
+    """Every bit of an offset survives the writer, up to the reader's limit (1e12, beyond any length)."""
     m = load_motion(CLIP).frames(slice(0, 5))
-    m.skeleton.offsets[3] = [1.7976931348623157e308, 1e-320, -0.1]
+    m.skeleton.offsets[3] = [999999999999.9999, 1e-320, -0.1]
     path = tmp_path / "big.bvh"
     save_bvh(m, path)
     back = load_motion(path, units="m")
     assert np.array_equal(back.skeleton.offsets[3], m.skeleton.offsets[3])
+
+
+def test_an_offset_beyond_any_length_is_refused_on_its_line(tmp_path):
+    m = load_motion(CLIP).frames(slice(0, 5))
+    m.skeleton.offsets[3] = [1.7976931348623157e308, 0.0, -0.1]
+    path = tmp_path / "big.bvh"
+    save_bvh(m, path)
+    line = 1 + next(i for i, text in enumerate(path.read_text().splitlines()) if "1.7976931348623157e+308" in text)
+    with pytest.raises(FormatError, match=rf"^{path}:{line}: OFFSET holds the value 1.79769e\+308"):
+        load_motion(path, units="m")
 
 
 @pytest.mark.parametrize("option", [["--approx", "nan"], ["--smoothing", "-7"], ["--approx", "inf"]])
