@@ -339,6 +339,7 @@ class SchedulerLost(Exception):
 
 def _compute(client, clips, outputs, digests, todo, results, manifest, method, gravity_scale, quiet, scheduler):
     from distributed import as_completed
+    from distributed.comm.core import CommClosedError
     from tqdm import tqdm
 
     futures = []
@@ -362,7 +363,8 @@ def _compute(client, clips, outputs, digests, todo, results, manifest, method, g
                 i = index_of[future.key]
                 try:
                     result = future.result()
-                except CancelledError:  # not by us (that is a KeyboardInterrupt): the scheduler went away
+                except (CancelledError, CommClosedError):  # not by us (that is a KeyboardInterrupt): the
+                    # scheduler went away; what its workers wrote before is read back from the disk
                     raise SchedulerLost(f"the Dask scheduler at {scheduler or 'the local cluster'} was lost") from None
                 except Exception as e:  # the task itself failed: a worker died more often than retries
                     result = {"status": "failed", "error": f"{type(e).__name__}: {e}".splitlines()[0], "seconds": None}
