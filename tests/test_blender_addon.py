@@ -210,3 +210,27 @@ def test_registered_as_the_issue_asks(played):
     assert {"method", "duration", "scale", "apply", "use_markers", "reference", "gravity_scale", "mass"} <= set(
         registered["properties"])
     assert registered["preferences"]
+
+
+def test_the_panel_says_the_rate_and_offers_the_source_rate(tmp_path):
+    """A BVH imported with Blender's defaults (scene at 24 fps) is retimed as if captured at 24 fps (flight
+    speed 1.29 instead of 1.08): the panel says the rate it times at, and where the action's source rate is
+    known and differs, warns and offers it; the add-on records the rate of the actions it bakes."""
+    require_bpy()
+    code, _, err = run_retime("convert", bundled_path("16_06.amc"), tmp_path / "16_06.bvh")
+    assert code == 0, err
+    exe = retime_wrapper(tmp_path)
+    done = run_bpy("addon_rate.py", build_addon(tmp_path / "dist"), tmp_path / "16_06.bvh", tmp_path / "rate.json",
+                   env=blender_env(tmp_path, RETIME_EXECUTABLE=str(exe)))
+    out = json.loads((tmp_path / "rate.json").read_text())
+    assert out["scene_fps"] == 24
+    labels = lambda shown: [s["label"] for s in shown if "label" in s]
+    buttons = lambda shown: [s for s in shown if s.get("operator") == "retime.use_source_rate"]
+    assert "Timed at the scene's 24 fps" in labels(out["unknown"]) and not buttons(out["unknown"])
+    warning = [s for s in out["known"] if "label" in s and "source rate is 120 fps" in s["label"]]
+    assert warning and warning[0]["alert"] and "Scene plays 24 fps" in warning[0]["label"]
+    (offer,) = buttons(out["known"])
+    assert offer["text"] == "Use 120 fps" and offer["props"]["fps"] == 120.0
+    assert "not the action's source rate 120 fps" in done.stdout + done.stderr  # the retime's own report says it
+    assert out["baked_at_24"] == 24.0
+    assert out["scene_fps_after"] == 120 and "Timed at the scene's 120 fps" in labels(out["matching"])

@@ -9,7 +9,7 @@ Its panel sits in the sidebar (N) of the Dope Sheet and of the NLA editor, tab "
 """
 import bpy
 
-from . import check_view, operator
+from . import armature, check_view, operator
 from .runner import RetimeAddonError, retime_executable
 
 
@@ -55,6 +55,7 @@ def draw_panel(layout, context):
     else:
         action = obj.animation_data.action if obj.animation_data else None
         layout.label(text=f"{obj.name}: {action.name if action else 'no action'}", icon="ARMATURE_DATA")
+        draw_rate(layout, context.scene, action)
     layout.prop(settings, "method")
     layout.prop(settings, "timing", expand=True)
     if settings.timing == "SCALE":
@@ -78,6 +79,23 @@ def draw_panel(layout, context):
     check_view.draw_rows(layout, context)
 
 
+def draw_rate(layout, scene, action):
+    """The rate the action is timed at (the scene's: what the scene plays), and a warning with the action's
+    source rate, offered, where it is known and differs (a BVH imported at 24 fps without Update Scene FPS
+    is retimed as if captured at 24 fps)."""
+    fps = armature.scene_fps(scene)
+    source = armature.rate_mismatch(scene, action)
+    if source is None:
+        layout.label(text=f"Timed at the scene's {fps:.4g} fps", icon="TIME")
+        return
+    box = layout.box()
+    box.alert = True
+    box.label(text=f"Scene plays {fps:.4g} fps; the action's source rate is {source:.4g} fps", icon="ERROR")
+    box.label(text="retime times it as the scene plays it")
+    op = box.operator(operator.RETIME_OT_use_source_rate.bl_idname, text=f"Use {source:.4g} fps")
+    op.fps = source
+
+
 class RetimePanel:
     """The panel's place in an editor's sidebar; the subclasses name the editor."""
 
@@ -97,8 +115,8 @@ class RETIME_PT_nla(RetimePanel, bpy.types.Panel):
     bl_space_type = "NLA_EDITOR"
 
 
-CLASSES = (RetimePreferences, RetimeSettings, operator.RETIME_OT_retime, *check_view.CLASSES, RETIME_PT_dopesheet,
-           RETIME_PT_nla)
+CLASSES = (RetimePreferences, RetimeSettings, operator.RETIME_OT_retime, operator.RETIME_OT_use_source_rate,
+           *check_view.CLASSES, RETIME_PT_dopesheet, RETIME_PT_nla)
 
 
 def register():

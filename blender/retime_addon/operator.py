@@ -183,8 +183,10 @@ class Job:
         frames = np.arange(self.start, self.end + 1, dtype=float)
         label = f"{self.action.name} ({self.props.method})"
         n_out = len(source_times)
+        mismatch = armature.rate_mismatch(context.scene, self.action)
         if self.props.apply == "BAKE":
             new, slot = apply.bake(self.obj, self.action, self.slot, frames, source_times, self.fps, label)
+            new[armature.SOURCE_FPS] = self.fps  # keyed at the scene's rate
             self.action.use_fake_user = True  # kept when the file is saved, though nothing plays it now
             armature.assign_action(self.obj, new, slot)
             where = f"baked to action {new.name!r}"
@@ -194,6 +196,7 @@ class Job:
             self.action.use_fake_user = True
             where = f"NLA strip {strip.name!r} (strip time keyed from the timing curve)"
             if copied:
+                action[armature.SOURCE_FPS] = self.fps
                 where += (f" playing {action.name!r}, the action keyed also between frames (its Euler or "
                           "non-linear keys blend otherwise than retime's slerp)")
         scene = context.scene
@@ -201,6 +204,9 @@ class Job:
             scene.frame_end = self.start + n_out - 1
         scene.frame_set(scene.frame_current)
         summary = f"retimed {self.action.name!r} with {self.props.method}: {self.n_source} -> {n_out} frames, {where}"
+        if mismatch is not None:
+            summary += (f"; timed at the scene's {self.fps:.4g} fps, not the action's source rate {mismatch:.4g} fps "
+                        "(the Retime panel offers it)")
         return summary + (f"; {said}" if said and not said.startswith("wrote ") else "")
 
     def cleanup(self):
@@ -354,3 +360,19 @@ class RETIME_OT_retime(bpy.types.Operator):
     def _fail(self, message):
         self.report({"ERROR"}, "Retime: " + " ".join(message.split()))  # one line, whatever retime printed
         return {"CANCELLED"}
+
+
+class RETIME_OT_use_source_rate(bpy.types.Operator):
+    """Set the scene's frame rate to the action's source rate, so that the action plays (and is retimed) at
+    the speed it was captured at"""
+
+    bl_idname = "retime.use_source_rate"
+    bl_label = "Use the Source Rate"
+    bl_options = {"REGISTER", "UNDO"}
+
+    fps: bpy.props.FloatProperty(name="Frame Rate", min=0.001, default=24.0)
+
+    def execute(self, context):
+        armature.set_scene_fps(context.scene, self.fps)
+        self.report({"INFO"}, f"scene frame rate set to {armature.scene_fps(context.scene):.4g} fps")
+        return {"FINISHED"}

@@ -272,6 +272,35 @@ def scene_fps(scene):
     return scene.render.fps / scene.render.fps_base
 
 
+def set_scene_fps(scene, fps):
+    """Set a scene's frame rate: whole frames per second over a base (29.97 = 30 / 1.001)."""
+    scene.render.fps = max(1, round(fps))
+    scene.render.fps_base = scene.render.fps / fps
+
+
+# the rate an action's frames were captured or keyed at, where it is known: Blender keeps no such thing
+# (a BVH imported without Update Scene FPS plays its frames at the scene's rate), so the Retime add-on
+# writes it on the actions it makes, and a user or a script may set it (action["retime_source_fps"] = 120)
+SOURCE_FPS = "retime_source_fps"
+
+
+def source_fps(action):
+    """The action's source frame rate when known, else None."""
+    try:
+        value = float(action.get(SOURCE_FPS, 0.0))
+    except (TypeError, ValueError):
+        return None
+    return value if value > 0 else None
+
+
+def rate_mismatch(scene, action):
+    """The action's source rate when it is known and not the scene's (to 0.1%), else None."""
+    known = source_fps(action) if action is not None else None
+    if known is None or abs(known - scene_fps(scene)) <= 1e-3 * known:
+        return None
+    return known
+
+
 def rotation_path(mode):
     """The pose bone (or object) property a rotation mode plays."""
     return {"QUATERNION": "rotation_quaternion", "AXIS_ANGLE": "rotation_axis_angle"}.get(mode, "rotation_euler")

@@ -157,7 +157,7 @@ def write(source, poses_npz, out):
         finally:
             os.unlink(bvh)
         start, n_frames = 1, int(poses["frames"])
-    scene.render.fps, scene.render.fps_base = max(1, round(fps)), max(1, round(fps)) / fps
+    armature.set_scene_fps(scene, fps)
     scene.frame_start, scene.frame_end = start, start + n_frames - 1
     export(out)
     return 0
