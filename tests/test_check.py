@@ -57,17 +57,23 @@ def test_double_speed_is_not_physical(capsys, jump_bvh, tmp_path):
     assert (tmp_path / "p.png").stat().st_size > 10_000
 
 
-def test_the_plot_shows_the_worst_frame_and_names_the_file(capsys, jump_bvh, tmp_path, monkeypatch):
-    """16_06's worst frame is 2.24 body weights: the plot's 99th-percentile scale (1.59) cut it off
-    unlabelled, and its title was the whole absolute path."""
+def test_the_plot_shows_the_worst_frame_and_names_the_file(capsys, tmp_path, monkeypatch):
+    """16_06's landing was 2.24 body weights: the plot's 99th-percentile scale (1.59) cut it off
+    unlabelled, and its title was the whole absolute path. The check now leaves a flight at g and its
+    landing out of the verdict, so the clip here is 16_06 played at the wrong rate (Frame Time x0.8),
+    whose every frame is judged and whose landing peaks at 3.2 body weights."""
     import numpy as np
 
+    from retime.motion.mistakes import wrong_frame_time
     from retime.viz import check as check_plot
+
+    jump_bvh = tmp_path / "jump.bvh"
+    save_bvh(wrong_frame_time(load_motion(bundled_path("16_06.amc")), 0.8), jump_bvh)
 
     figures = []
     real = check_plot.check_figure
     monkeypatch.setattr(check_plot, "check_figure", lambda c, title="": figures.append((c, real(c, title))) or figures[-1][1])
-    assert _check(capsys, jump_bvh.resolve(), "--plot", tmp_path / "p.png")[0] == 0
+    assert _check(capsys, jump_bvh.resolve(), "--plot", tmp_path / "p.png")[0] == 1
     (result, fig), = figures
     ax = fig.axes[0]
     worst = int(np.argmax(result.residual))
