@@ -87,7 +87,7 @@ def test_blend_moves_the_flight_speed_monotonically(jump):
     from retime.physics.contacts import foot_contacts
     from retime.phases import longest_flight
 
-    a, b = longest_flight(foot_contacts(jump), jump.fps)
+    a, b = longest_flight(foot_contacts(jump), np.arange(jump.n_frames) / jump.fps)
     speeds = [interval_speed(guided_solve(jump, scale=0.6, blend=w).curve, a, b) for w in (0.0, 0.25, 0.5, 0.75, 1.0)]
     assert speeds[0] == pytest.approx(1 / 0.6, rel=0.02)  # the spline plays the flight like the rest
     assert speeds[-1] == pytest.approx(1.0, abs=0.05)  # guided at its natural speed
