@@ -97,3 +97,18 @@ def max_error_over_height(names_a, a, names_b, b, height):
     ib = [index[n] for n in common]
     assert a.shape[0] == b.shape[0], f"{a.shape[0]} frames against {b.shape[0]}"
     return float(np.linalg.norm(a[:, ia] - b[:, ib], axis=-1).max() / height)
+
+
+def play_addon_script(folder: Path, script: str):
+    """CMU 16_06 as BVH in ``folder``, the add-on built, and ``script`` run in bpy on them as
+    ``script ADDON.zip 16_06.bvh FOLDER RESULTS.json`` against this tree's retime: (its run, its results)."""
+    import json
+
+    from retime.data import bundled_path
+
+    code, _, err = run_retime("convert", bundled_path("16_06.amc"), folder / "16_06.bvh")
+    assert code == 0, err
+    exe = retime_wrapper(folder)
+    done = run_bpy(script, build_addon(folder / "dist"), folder / "16_06.bvh", folder, folder / "results.json",
+                   env=blender_env(folder, RETIME_EXECUTABLE=str(exe)))
+    return done, json.loads((folder / "results.json").read_text())

@@ -7,8 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from _blender_support import blender_env, build_addon, require_bpy, retime_wrapper, run_bpy, run_retime
-from retime.data import bundled_path
+from _blender_support import play_addon_script, require_bpy, run_retime
 
 FEET = ("left", "right")
 
@@ -23,13 +22,7 @@ def blender_axes(v):
 def checked(tmp_path_factory):
     require_bpy()
     tmp = tmp_path_factory.mktemp("check")
-    code, _, err = run_retime("convert", bundled_path("16_06.amc"), tmp / "16_06.bvh")
-    assert code == 0, err
-    exe = retime_wrapper(tmp)
-    addon = build_addon(tmp / "dist")
-    done = run_bpy("check_driver.py", addon, tmp / "16_06.bvh", tmp, tmp / "results.json",
-                   env=blender_env(tmp, RETIME_EXECUTABLE=str(exe)))
-    result = json.loads((tmp / "results.json").read_text())
+    done, result = play_addon_script(tmp, "check_driver.py")
     result["printed"] = done.stdout + done.stderr  # Blender prints an operator's reports when it has no window
     code, _, err = run_retime("check", tmp / "first" / "source.bvh", "--report", tmp / "cli.json")
     assert code in (0, 1), err

@@ -86,14 +86,17 @@ def animated_armature(context, verb):
 
 def export_bvh(context, obj, action, slot, frames, fps, path):
     """The armature ``obj`` playing ``action`` alone (NLA muted) sampled at every frame of ``frames``
-    (first, last), written as BVH to ``path``; returns its hierarchy. The armature is left as it was."""
+    (first, last), written as BVH to ``path``; returns its hierarchy. A rig with control bones is
+    exported as its evaluated deform skeleton (what physics must judge), while Bake and NLA retime
+    the action's own curves (the controls). The armature is left as it was."""
     adt, scene = obj.animation_data, context.scene
     saved = adt.action, getattr(adt, "action_slot", None), adt.use_nla, scene.frame_current
     try:
         adt.use_nla = False
         if action is not adt.action:
             armature.assign_action(obj, action, slot)
-        hierarchy, poses, world = armature.sample_pose(context, obj, range(frames[0], frames[1] + 1))
+        hierarchy, poses, world = armature.sample_pose(context, obj, range(frames[0], frames[1] + 1),
+                                                       deform_only=armature.drives_deform(obj))
         text = armature.BvhPose(hierarchy, poses, world).text(fps)
     except armature.ArmatureError as e:
         raise RetimeAddonError(str(e)) from None

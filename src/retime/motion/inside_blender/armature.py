@@ -32,26 +32,43 @@ def bvh_name(name: str) -> str:
 class Hierarchy:
     """An armature's bones in depth-first order (parents before children) with their rest matrices."""
 
-    def __init__(self, obj):
-        roots = [b for b in obj.data.bones if b.parent is None]
+    def __init__(self, obj, deform_only=False):
+        """``deform_only``: the deform bones alone, each under its nearest deform ancestor (a rig whose
+        controls drive the deform skeleton through constraints: Rigify's DEF bones)."""
+        keep = (lambda b: b.use_deform) if deform_only else (lambda b: True)
+
+        def parent(b):
+            p = b.parent
+            while p is not None and not keep(p):
+                p = p.parent
+            return p
+
+        def children(b):  # the kept bones whose nearest kept ancestor is b, in Blender's order
+            out = []
+            for c in b.children:
+                out.extend([c] if keep(c) else children(c))
+            return out
+
+        roots = [b for b in obj.data.bones if keep(b) and parent(b) is None]
+        what = "deform bones" if deform_only else "bones"
         if not roots:
-            raise ArmatureError(f"armature {obj.name!r} has no bones")
+            raise ArmatureError(f"armature {obj.name!r} has no {what}")
         if len(roots) > 1:
             names = ", ".join(repr(b.name) for b in roots[:4]) + (", ..." if len(roots) > 4 else "")
-            raise ArmatureError(f"armature {obj.name!r} has {len(roots)} root bones ({names}); retime needs one "
+            raise ArmatureError(f"armature {obj.name!r} has {len(roots)} root {what} ({names}); retime needs one "
                                 "hierarchy: parent them to a single root bone")
         order, stack = [], [roots[0]]
         while stack:
             bone = stack.pop()
             order.append(bone)
-            stack.extend(reversed(bone.children))
+            stack.extend(reversed(children(bone)))
         self.names = [b.name for b in order]
         index = {n: i for i, n in enumerate(self.names)}
-        self.parents = np.array([index[b.parent.name] if b.parent else -1 for b in order], dtype=int)
+        self.parents = np.array([index[parent(b).name] if parent(b) else -1 for b in order], dtype=int)
         self.bvh_names = _unique([bvh_name(n) for n in self.names])
         self.rest = np.array([np.array(b.matrix_local, dtype=float) for b in order])  # (J, 4, 4) armature space
         self.tails = np.array([np.array(b.tail_local, dtype=float) for b in order])
-        self.leaves = [j for j, b in enumerate(order) if not b.children]
+        self.leaves = [j for j, b in enumerate(order) if not children(b)]
 
 
 def _unique(names):
@@ -63,10 +80,18 @@ def _unique(names):
     return out
 
 
-def sample_pose(context, obj, frames):
-    """The evaluated pose at each scene frame: bone pose matrices in armature space (F, J, 4, 4) and the
-    object's world matrix (F, 4, 4). Moves the scene's current frame (the caller restores it)."""
-    hierarchy = Hierarchy(obj)
+def drives_deform(obj) -> bool:
+    """Whether an armature has control bones beside its deform bones (Rigify and most hand-made rigs):
+    then its body is the deform skeleton, posed by constraints and drivers from the controls."""
+    bones = obj.data.bones
+    return any(b.use_deform for b in bones) and not all(b.use_deform for b in bones)
+
+
+def sample_pose(context, obj, frames, deform_only=False):
+    """The evaluated pose (after constraints and drivers) at each scene frame: bone pose matrices in
+    armature space (F, J, 4, 4) and the object's world matrix (F, 4, 4); ``deform_only``: of the deform
+    bones alone (:class:`Hierarchy`). Moves the scene's current frame (the caller restores it)."""
+    hierarchy = Hierarchy(obj, deform_only)
     poses = np.empty((len(frames), len(hierarchy.names), 4, 4))
     world = np.empty((len(frames), 4, 4))
     scene = context.scene

@@ -1,0 +1,89 @@
+"""Runs inside the bpy venv: a rig whose controls drive its deform skeleton through constraints, then Check
+and Retime on it. ``python rig_driver.py ADDON.zip MOTION.bvh FOLDER RESULTS.json``
+
+The rig: the BVH's armature (its bones deform) with a non-deform control bone "CTRL-X" beside every bone
+X (same rest, the controls' own hierarchy), X copying CTRL-X's world transform, and the action moved onto
+the controls, so that only constraints pose the deform bones (Rigify's layout, small). Per case, the deform
+bones' world heads on every output frame go to FOLDER/NAME.npz; RESULTS.json says what the baked actions
+animate."""
+import json
+import os
+import sys
+
+import bpy
+import numpy as np
+
+CASES = {"linear_rig": {"method": "linear", "scale": 0.5, "apply": "BAKE"},
+         "physics_rig": {"method": "physics", "scale": 0.5, "apply": "BAKE"}}
+
+
+def controlled_rig(bvh, fcurves_of):
+    bpy.ops.import_anim.bvh(filepath=bvh, update_scene_fps=True, update_scene_duration=True)
+    arm = bpy.context.active_object
+    names = [b.name for b in arm.data.bones]
+    bpy.ops.object.mode_set(mode="EDIT")
+    edit = arm.data.edit_bones
+    for name in names:
+        b = edit[name]
+        c = edit.new("CTRL-" + name)
+        c.head, c.tail, c.roll, c.use_deform = b.head, b.tail, b.roll, False
+    for name in names:
+        if edit[name].parent is not None:
+            edit["CTRL-" + name].parent = edit["CTRL-" + edit[name].parent.name]
+    bpy.ops.object.mode_set(mode="OBJECT")
+    for name in names:
+        bone, ctrl = arm.pose.bones[name], arm.pose.bones["CTRL-" + name]
+        ctrl.rotation_mode = bone.rotation_mode
+        con = bone.constraints.new("COPY_TRANSFORMS")
+        con.target, con.subtarget = arm, ctrl.name
+    action = arm.animation_data.action
+    for fc in fcurves_of(action):
+        bone = fc.data_path.split('"')[1]
+        fc.data_path = fc.data_path.replace(f'pose.bones["{bone}"]', f'pose.bones["CTRL-{bone}"]')
+    bpy.context.scene.frame_set(bpy.context.scene.frame_current)
+    return arm, names
+
+
+def heads(arm, names, frames):
+    out = np.empty((len(frames), len(names), 3))
+    for k, f in enumerate(frames):
+        bpy.context.scene.frame_set(int(f))
+        ev = arm.evaluated_get(bpy.context.evaluated_depsgraph_get())
+        for j, n in enumerate(names):
+            out[k, j] = ev.matrix_world @ ev.pose.bones[n].head
+    return out
+
+
+def main(zip_path, bvh, folder, results_path):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default", enable_on_install=True)
+    package = next(a.module for a in bpy.context.preferences.addons if a.module.endswith(".retime"))
+    from importlib import import_module
+
+    armature = import_module(package + ".armature")
+    arm, names = controlled_rig(bvh, armature.action_fcurves)
+    original, original_slot = arm.animation_data.action, getattr(arm.animation_data, "action_slot", None)
+    result = {"drives_deform": armature.drives_deform(arm)}
+    try:
+        armature.Hierarchy(arm)  # every bone: two roots, the deform one and the controls'
+        result["all_bones"] = "ok"
+    except armature.ArmatureError as e:
+        result["all_bones"] = str(e)
+    result["check"] = sorted(bpy.ops.retime.check(exchange_folder=os.path.join(folder, "rig_check")))
+    for name, op in CASES.items():
+        armature.assign_action(arm, original, original_slot)
+        result[name] = {"status": sorted(bpy.ops.retime.retime(**op, exchange_folder=os.path.join(folder, name)))}
+        baked = arm.animation_data.action
+        start, end = (int(round(f)) for f in baked.frame_range)
+        result[name]["animated"] = sorted({fc.data_path.split('"')[1] for fc in armature.action_fcurves(baked)})
+        frames = list(range(start, end + 1))
+        np.savez(os.path.join(folder, name + ".npz"), heads=heads(arm, names, frames), names=np.array(names),
+                 frames=np.array(frames))
+    with open(results_path, "w") as f:
+        json.dump(result, f)
+
+
+if __name__ == "__main__":
+    main(*sys.argv[1:5])
+    sys.stdout.flush()
+    os._exit(0)
