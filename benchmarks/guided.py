@@ -7,6 +7,8 @@ expansions and modifications upsampled). Columns, in seconds after JIT warm-up, 
   objective     exact kNN local scores of all n s^2 triples (k = 3)
   optimization  exact constrained shortest path (V8: unconstrained)
   heuristic     coarse-to-fine search given the scores (the paper's column has the same meaning)
+  steady        the steady score's sub-frame refinement of the exact warp (retime.guided.steady; the
+                default score: the paper's score is the exact warp alone, --score paper)
 and the heuristic's gap to the exact objective.
 
 Targets (issue 3, this 2-core machine):
@@ -37,7 +39,9 @@ from retime.guided import dp
 from retime.guided.api import analysis_poses
 from retime.guided.features import FeatureWeights, compact_columns
 from retime.guided.heuristic import solve_heuristic, solve_upper_bound
+from retime.guided.method import Settings
 from retime.guided.problem import WarpProblem
+from retime.guided.steady import steady_warp
 from retime.motion import load_motion
 
 PAPER = {  # trial: (n, m, r, s, objective s, optimization s, heuristic s)
@@ -52,6 +56,7 @@ PAPER = {  # trial: (n, m, r, s, objective s, optimization s, heuristic s)
 }
 A = 30.0
 V1_TARGET_S = 0.015
+V1_NUMPY_RATIO = 30  # issue 23: the V1 exact solve, steady refinement included, at most 1/30 of NumPy's time
 GAP_TARGET = 0.01
 BIG_EXACT_TARGET_S = 10.0
 BIG_HEURISTIC_TARGET_S = 1.0
@@ -276,9 +281,11 @@ def run_trial(name, problem, repeat):
         t_opt, sol = best_of(lambda: dp.solve_fixed(F, problem.m, band=band), repeat)
         solve_heuristic(problem, F)
         t_heu, (heu, _, _) = best_of(lambda: solve_heuristic(problem, F), repeat)
+    # its time (the points per step follow the upsampling, which changes the work little)
+    t_steady, _ = best_of(lambda: steady_warp(F, sol.frames, [], Settings.steadiness), max(1, min(repeat, 3)))
     row = {"trial": name, "n": problem.n, "m": problem.m if problem.m is not None else len(sol.frames),
            "r": problem.r, "s": problem.s, "objective_s": t_obj, "optimization_s": t_opt, "heuristic_s": t_heu,
-           "objective": sol.objective, "heuristic_objective": None if heu is None else heu.objective,
+           "steady_s": t_steady, "objective": sol.objective, "heuristic_objective": None if heu is None else heu.objective,
            "heuristic_gap": None if heu is None else heu.objective / sol.objective - 1.0}
     paper = PAPER[name]
     row.update({"paper_objective_s": paper[4], "paper_optimization_s": paper[5], "paper_heuristic_s": paper[6]})
@@ -304,6 +311,7 @@ def run_big(clips, repeat):
     Fs = small.scores()
     h, _, _ = solve_upper_bound(small, Fs)
     dp.solve_fixed(Fs, small.m, band=dp.prune_band(Fs, small.m, small.band(), h.objective))
+    steady_warp(Fs, h.frames, [], Settings.steadiness)
     cpu = {}
 
     def timed(key, fn):
@@ -319,10 +327,12 @@ def run_big(clips, repeat):
     t_prune, pruned = timed("prune", lambda: dp.prune_band(F, problem.m, band, ub.objective,
                                                          hist=ubstats.extra.get("lagrange")))
     t_dp, sol = timed("band_dp", lambda: dp.solve_fixed(F, problem.m, band=pruned))
+    t_steady, _ = timed("steady", lambda: steady_warp(F, sol.frames, [], Settings.steadiness))
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     return {"trial": "10min", "n": problem.n, "m": problem.m, "r": problem.r, "s": problem.s,
             "objective_s": t_obj, "optimization_s": t_ub + t_prune + t_dp, "heuristic_s": t_heu,
-            "exact_total_s": t_obj + t_ub + t_prune + t_dp, "upper_bound_s": t_ub, "prune_s": t_prune,
+            "exact_total_s": t_obj + t_ub + t_prune + t_dp, "steady_s": t_steady,
+            "steady_total_s": t_obj + t_ub + t_prune + t_dp + t_steady, "upper_bound_s": t_ub, "prune_s": t_prune,
             "band_dp_s": t_dp, "cpu_s": cpu,
             "states": band.n_states(problem.s), "pruned_states": pruned.n_states(problem.s),
             "objective": sol.objective, "heuristic_objective": heu.objective,
@@ -358,7 +368,10 @@ def main(argv=None):
         if name == "V1":
             row.update(run_numpy_v1(problem, F, args.repeat))
             row["target_s"] = V1_TARGET_S
-            row["meets_target"] = row["objective_s"] + row["optimization_s"] <= V1_TARGET_S
+            np_total = row["numpy_objective_s"] + row["numpy_optimization_s"]
+            row["meets_target"] = (row["objective_s"] + row["optimization_s"] <= V1_TARGET_S
+                                   and row["objective_s"] + row["optimization_s"] + row["steady_s"]
+                                   <= np_total / V1_NUMPY_RATIO)
             ok &= row["meets_target"]
         if row["heuristic_gap"] is not None:
             ok &= row["heuristic_gap"] <= GAP_TARGET
@@ -372,7 +385,7 @@ def main(argv=None):
         else:
             big = json.loads(child.stdout.strip().splitlines()[-1])
             if big is not None:
-                big["meets_target"] = (big["exact_total_s"] <= BIG_EXACT_TARGET_S
+                big["meets_target"] = (big["steady_total_s"] <= BIG_EXACT_TARGET_S
                                        and big["heuristic_s"] <= BIG_HEURISTIC_TARGET_S
                                        and big["max_rss_bytes"] <= BIG_MEMORY_TARGET
                                        and big["heuristic_gap"] <= GAP_TARGET)
@@ -385,7 +398,8 @@ def main(argv=None):
     print("Guided time warping, Table 1 (paper: 2.4 GHz Pentium 4, C++ kNN + MATLAB DP; ours: "
           f"{os.cpu_count()} cores, numba)")
     head = f"{'trial':6}{'n':>6}{'m':>6}{'r':>6}{'s':>4} | {'objective':>10}{'paper':>8}{'ratio':>7} | " \
-           f"{'optimization':>12}{'paper':>8}{'ratio':>7} | {'heuristic':>10}{'paper':>8}{'ratio':>7} | gap"
+           f"{'optimization':>12}{'paper':>8}{'ratio':>7} | {'heuristic':>10}{'paper':>8}{'ratio':>7} | " \
+           f"{'steady':>9} | gap"
     print(head)
     print("-" * len(head))
     for r in rows:
@@ -398,12 +412,13 @@ def main(argv=None):
               f"{fmt(r['optimization_s']):>12}{r['paper_optimization_s']:>7.1f}s"
               f"{ratio(r['optimization_s'], r['paper_optimization_s']):>7} | {fmt(r['heuristic_s']):>10}"
               f"{'-' if r['paper_heuristic_s'] is None else format(r['paper_heuristic_s'], '.2f') + 's':>8}"
-              f"{ratio(r['heuristic_s'], r['paper_heuristic_s']):>7} | {gap}")
+              f"{ratio(r['heuristic_s'], r['paper_heuristic_s']):>7} | {fmt(r['steady_s']):>9} | {gap}")
     v1 = next((r for r in rows if r["trial"] == "V1"), None)
     if v1:
         tot = v1["objective_s"] + v1["optimization_s"]
         np_tot = v1["numpy_objective_s"] + v1["numpy_optimization_s"]
-        print(f"\nV1 exact objective + optimization: {fmt(tot)} (target {fmt(V1_TARGET_S)}: "
+        print(f"\nV1 exact objective + optimization: {fmt(tot)}, with the steady refinement "
+              f"{fmt(tot + v1['steady_s'])} (targets {fmt(V1_TARGET_S)} and 1/{V1_NUMPY_RATIO} of NumPy's: "
               f"{'met' if v1['meets_target'] else 'MISSED'}); paper {v1['paper_objective_s'] + v1['paper_optimization_s']:.1f} s "
               f"({(v1['paper_objective_s'] + v1['paper_optimization_s']) / tot:.0f}x)")
         print(f"V1 plain NumPy, same run: scores {fmt(np_tot - v1['numpy_optimization_s'])} + DP "
@@ -414,7 +429,8 @@ def main(argv=None):
     if big:
         print(f"\n10-minute clip (n={big['n']}, m={big['m']}, r={big['r']}, s={big['s']}): exact {fmt(big['exact_total_s'])} "
               f"= scores {fmt(big['objective_s'])} + upper bound {fmt(big['upper_bound_s'])} + Lagrangian pruning "
-              f"{fmt(big['prune_s'])} + DP {fmt(big['band_dp_s'])} on {big['pruned_states'] / big['states']:.1%} of "
+              f"{fmt(big['prune_s'])} + DP {fmt(big['band_dp_s'])} (+ steady refinement {fmt(big['steady_s'])} = "
+              f"{fmt(big['steady_total_s'])}) on {big['pruned_states'] / big['states']:.1%} of "
               f"the band's {big['states']:,} states; peak memory {big['max_rss_bytes'] / 2**30:.2f} GB; heuristic "
               f"{fmt(big['heuristic_s'])}, {100 * big['heuristic_gap']:.3f}% above the optimum "
               f"(targets: 10 s, 2 GB, 1 s: {'met' if big['meets_target'] else 'MISSED'})")

@@ -26,6 +26,7 @@ SUCCESS = {
     "guided_bake": ({"method": "guided", "apply": "BAKE", **HALF}, {"rotate_mode": "QUATERNION"}),
     "guided_nla": ({"method": "guided", "apply": "NLA", **HALF}, {"rotate_mode": "QUATERNION"}),
     "guided_reference": ({"method": "guided", "apply": "BAKE", "duration": 2.5, "reference": "reference"}, {"reference": True}),
+    "guided_blend": ({"method": "guided", "apply": "BAKE", **HALF, "blend": 0.4}, {"rotate_mode": "QUATERNION"}),
     "physics_bake": ({"method": "physics", "apply": "BAKE", **HALF}, {}),
     "physics_nla": ({"method": "physics", "apply": "NLA", **HALF}, {}),
     "physics_options": ({"method": "physics", "apply": "BAKE", **HALF, "gravity_scale": 0.5, "mass": "lfemur=3"}, {}),
@@ -99,6 +100,8 @@ def cli_argv(op, folder):
             argv += [flag, op[key]]
     if op.get("reference"):
         argv += ["--reference", folder / "reference.bvh"]
+    if op.get("blend", 1.0) != 1.0:
+        argv += ["--blend", op["blend"]]
     if op.get("gravity_scale", 1.0) != 1.0:
         argv += ["--gravity-scale", op["gravity_scale"]]
     for item in filter(None, op.get("mass", "").split(",")):

@@ -175,6 +175,28 @@ def test_errors_are_shown_and_the_page_keeps_working(browser, server, shots):
     page.close()
 
 
+def test_guided_blend_slider(browser, server, shots):
+    """Guided's reference influence is a slider; at 0 the warp is the spline through the ends (a line)."""
+    url = server[0]
+    errors = []
+    page = open_page(browser, url, errors)
+    page.click('#methods button[data-method="guided"]')
+    wait_js(page, "window.__retime.solution.method === 'guided'")
+    page.fill("#duration", "2.5")
+    page.press("#duration", "Enter")
+    wait_js(page, "Math.abs(window.__retime.solution.duration - 2.5) < 1e-9")
+    straight = ("(() => { const c = window.__retime.solution.curve, n = c.t.length, r = c.s[n - 1] / c.t[n - 1];"
+                " return c.t.every((t, k) => Math.abs(c.s[k] - r * t) < 1e-5); })()")  # the page gets 6 decimals
+    slider = page.locator("#param-guided-blend")
+    assert slider.get_attribute("type") == "range"
+    slider.fill("0")  # sets the value and fires input and change
+    wait_js(page, "window.__retime.solution.method === 'guided' && window.__retime.params.guided.blend === 0")
+    wait_js(page, straight)
+    page.screenshot(path=str(shots / "editor-5-blend.png"))
+    assert not errors, errors
+    page.close()
+
+
 @pytest.mark.parametrize("method", ["physics", "guided", "linear"])
 def test_drag_latency(browser, server, method, capsys, shots):
     """Drag a control point; time each input -> re-solved (reconverged) curve painted on screen."""

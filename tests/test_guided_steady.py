@@ -142,3 +142,39 @@ def test_cli_blend_and_score(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["guided", src, "-o", str(tmp_path / "d.bvh"), "--scale", "0.6", "--blend", "2"])
     assert "from 0 to 1" in capsys.readouterr().err
+
+
+def test_batch_blend_column(tmp_path):
+    from retime.batch.jobs import Defaults, find_clips
+    from retime.batch.run import clip_argv
+    from retime.errors import RetimeError
+
+    jobs = tmp_path / "jobs.csv"
+    jobs.write_text(f"motion,scale,blend\n{bundled_path('16_06.amc')},0.6,0.25\n{bundled_path('16_03.amc')},0.6,\n")
+    a, b = find_clips([str(jobs)], Defaults())
+    assert a.blend == 0.25 and b.blend is None
+    argv = clip_argv(a, "guided", a.outputs(tmp_path, "guided"))
+    assert argv[argv.index("--blend") + 1] == "0.25"
+    assert "--blend" not in clip_argv(b, "guided", b.outputs(tmp_path, "guided"))
+    jobs.write_text(f"motion,scale,blend\n{bundled_path('16_06.amc')},0.6,1.5\n")
+    with pytest.raises(RetimeError, match=r"jobs.csv line 2: blend must be a number from 0 to 1"):
+        find_clips([str(jobs)], Defaults())
+
+
+def test_batch_blend_is_for_guided(tmp_path, capsys):
+    jobs = tmp_path / "jobs.csv"
+    jobs.write_text(f"motion,scale,blend\n{bundled_path('16_06.amc')},0.6,0.5\n")
+    assert main(["batch", str(jobs), "-o", str(tmp_path / "out"), "--method", "linear"]) != 0
+    assert "a blend is for --method guided" in capsys.readouterr().err
+
+
+def test_editor_offers_blend_as_a_slider():
+    from retime.editor.methods import GuidedMethod
+    from retime.errors import RetimeError
+
+    param, = [p for p in GuidedMethod.params if p.name == "blend"]
+    d = param.to_json()
+    assert d["kind"] == "slider" and (d["min"], d["max"]) == (0.0, 1.0)
+    assert param.check("0.3") == 0.3
+    with pytest.raises(RetimeError, match="outside 0 .. 1"):
+        param.check(1.2)

@@ -43,6 +43,8 @@ class RetimeSettings(bpy.types.PropertyGroup):
     apply: bpy.props.EnumProperty(name="Apply", items=operator.APPLY_MODES, default="BAKE")
     use_markers: bpy.props.BoolProperty(name="Keytimes from Markers", default=True, description=operator.MARKER_HELP)
     reference: bpy.props.StringProperty(name="Reference", description="The action whose timing to imitate (empty: the action itself)")
+    blend: bpy.props.FloatProperty(name="Reference Influence", default=1.0, min=0.0, max=1.0, subtype="FACTOR",
+                                   description="0: the smooth spline through the keytimes; 1: the guided warp")
     gravity_scale: bpy.props.FloatProperty(name="Gravity", default=1.0, min=0.01, max=100.0)
     mass: bpy.props.StringProperty(name="Mass Factors", description="BONE=FACTOR, comma separated (e.g. lfemur=10)")
 
@@ -66,6 +68,7 @@ def draw_panel(layout, context):
     layout.prop(settings, "use_markers", text=f"Keytimes from Markers ({keys})")
     if settings.method == "guided":
         layout.prop_search(settings, "reference", bpy.data, "actions")
+        layout.prop(settings, "blend", slider=True)
     if settings.method == "physics":
         layout.prop(settings, "gravity_scale")
         layout.prop(settings, "mass")
@@ -75,6 +78,7 @@ def draw_panel(layout, context):
     op.scale = settings.scale if settings.timing == "SCALE" else 0.0
     op.duration = settings.duration if settings.timing == "DURATION" else 0.0
     op.reference = settings.reference if settings.method == "guided" else ""
+    op.blend = settings.blend if settings.method == "guided" else 1.0
     op.gravity_scale, op.mass = settings.gravity_scale, settings.mass if settings.method == "physics" else ""
     check_view.draw_rows(layout, context)
 

@@ -173,6 +173,8 @@ class Job:
             reference = os.path.join(self.folder, "reference.bvh")
             self._export(context, self.reference, ref_slot, frames, reference)
             argv += ["--reference", reference]
+        if p.method == "guided" and p.blend < 1.0:
+            argv += ["--blend", _typed(p.blend)]
         if p.method == "physics":
             if abs(p.gravity_scale - 1.0) > 1e-9:
                 argv += ["--gravity-scale", _typed(p.gravity_scale)]
@@ -266,6 +268,9 @@ class RETIME_OT_retime(bpy.types.Operator):
     use_markers: bpy.props.BoolProperty(name="Keytimes from Markers", default=True, description=MARKER_HELP)
     reference: bpy.props.StringProperty(name="Reference", description="Guided: the action whose timing to imitate "
                                         "(empty: the action itself)")
+    blend: bpy.props.FloatProperty(name="Reference Influence", description="Guided: 0 plays the smooth spline "
+                                   "through the keytimes, 1 the guided warp (Hsu et al. sec. 5)", default=1.0,
+                                   min=0.0, max=1.0, subtype="FACTOR")
     gravity_scale: bpy.props.FloatProperty(name="Gravity", description="Physics: gravity times this", default=1.0,
                                            min=0.01, max=100.0)
     mass: bpy.props.StringProperty(name="Mass Factors", description="Physics: BONE=FACTOR, comma separated "

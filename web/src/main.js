@@ -212,13 +212,13 @@ function buildParams() {
       label.prepend(input);
     } else {
       input = document.createElement("input");
-      input.type = "number";
+      input.type = p.kind === "slider" ? "range" : "number";
       Object.assign(input, { min: p.min, max: p.max, step: p.step ?? "any" });
       input.value = values[p.name] ?? p.default;
     }
     input.id = id;
     input.addEventListener("change", () => {
-      let v = p.kind === "bool" ? input.checked : p.kind === "number" ? Number(input.value) : input.value;
+      let v = p.kind === "bool" ? input.checked : p.kind === "number" || p.kind === "slider" ? Number(input.value) : input.value;
       state.params[m.name] = { ...(state.params[m.name] || {}), [p.name]: v };
       send([{ op: "params", method: m.name, values: { [p.name]: v } }]);
     });
@@ -228,6 +228,12 @@ function buildParams() {
       const row = document.createElement("div");
       row.className = "inline";
       row.appendChild(input);
+      if (p.kind === "slider") {  // the value beside the slider, following it while dragged
+        const shown = document.createElement("output");
+        shown.htmlFor = id; shown.textContent = Number(input.value).toFixed(2);
+        input.addEventListener("input", () => { shown.textContent = Number(input.value).toFixed(2); });
+        row.appendChild(shown);
+      }
       if (p.unit) { const u = document.createElement("span"); u.className = "unit"; u.textContent = p.unit; row.appendChild(u); }
       field.appendChild(row);
     }

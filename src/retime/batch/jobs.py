@@ -1,5 +1,5 @@
 """The clips of a batch: files, folders walked for motion files (.bvh, .amc; .fbx, .glb, .gltf with bpy), and jobs files (.csv or .toml) with
-per-clip overrides (duration, scale, keytimes, reference)."""
+per-clip overrides (duration, scale, keytimes, reference, blend)."""
 from __future__ import annotations
 
 import csv
@@ -16,7 +16,7 @@ from .layout import BATCH_FILES, OUTPUT_SUFFIXES
 
 MOTION_SUFFIXES = READABLE  # what the single-clip commands read (FBX and glTF with bpy)
 JOBS_SUFFIXES = (".csv", ".toml")
-JOB_FIELDS = ("motion", "duration", "scale", "keytimes", "reference")
+JOB_FIELDS = ("motion", "duration", "scale", "keytimes", "reference", "blend")
 
 
 @dataclass(frozen=True)
@@ -30,6 +30,7 @@ class Clip:
     scale: float | None = None
     keytimes: tuple[tuple[float, float], ...] = ()
     reference: Path | None = None
+    blend: float | None = None  # guided's reference influence, 0..1 (None: the method's default)
     origin: str = ""  # where the clip was named (for error messages): a folder, a jobs file line
     jobs_file: Path | None = None  # the jobs file naming it, if any
 
@@ -202,8 +203,9 @@ def _job_clip(row: dict, where: str, jobs_file: Path, defaults: Defaults) -> Cli
     keytimes = parse_keytimes(row.get("keytimes"), where)
     reference_text = _text(row.get("reference"), "reference", where)
     reference = jobs_file.parent / reference_text if reference_text else None
+    blend = _unit(row.get("blend"), "blend", where)
     return _clip(motion, _job_name(motion, jobs_file), defaults, origin=where, duration=duration, scale=scale,
-                 keytimes=keytimes or None, reference=reference, jobs_file=jobs_file)
+                 keytimes=keytimes or None, reference=reference, blend=blend, jobs_file=jobs_file)
 
 
 def read_jobs_csv(path: Path, defaults: Defaults) -> list[Clip]:
@@ -262,16 +264,25 @@ def _text(value, name, where) -> str | None:
     return value.strip() or None
 
 
-def _positive(value, name, where) -> float | None:
+def _number(value, name, where, ok, what) -> float | None:
+    """A cell's number (None if empty), required to satisfy ``ok`` (``what`` says how)."""
     if value is None or value == "":
         return None
     try:
         v = float(value)
     except (TypeError, ValueError):
         raise RetimeError(f"{where}: {name} {value!r} is not a number") from None
-    if isinstance(value, bool) or not (v > 0 and math.isfinite(v)):
-        raise RetimeError(f"{where}: {name} must be a positive number, got {value!r}")
+    if isinstance(value, bool) or not ok(v):
+        raise RetimeError(f"{where}: {name} must be {what}, got {value!r}")
     return v
+
+
+def _positive(value, name, where) -> float | None:
+    return _number(value, name, where, lambda v: v > 0 and math.isfinite(v), "a positive number")
+
+
+def _unit(value, name, where) -> float | None:
+    return _number(value, name, where, lambda v: 0.0 <= v <= 1.0, "a number from 0 to 1")
 
 
 def parse_keytimes(value, where) -> tuple[tuple[float, float], ...]:

@@ -37,6 +37,8 @@ def clip_argv(clip: Clip, method: str, outputs: dict[str, Path], gravity_scale: 
         argv += ["--keytime", f"{src!r}={dst!r}"]
     if clip.reference is not None:
         argv += ["--reference", str(clip.reference)]
+    if clip.blend is not None:
+        argv += ["--blend", repr(clip.blend)]
     if method == "physics":
         argv += ["--report", str(outputs["report"])]
         if gravity_scale is not None:

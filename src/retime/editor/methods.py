@@ -41,7 +41,7 @@ class Param:
 
     name: str
     label: str
-    kind: str  # "number", "choice", "bool"
+    kind: str  # "number", "slider" (a number shown as a slider), "choice", "bool"
     default: object
     min: float | None = None
     max: float | None = None
@@ -53,7 +53,7 @@ class Param:
     def to_json(self):
         d = {"name": self.name, "label": self.label, "kind": self.kind, "default": self.default,
              "unit": self.unit, "help": self.help}
-        if self.kind == "number":
+        if self.kind in ("number", "slider"):
             d.update(min=self.min, max=self.max, step=self.step)
         if self.kind == "choice":
             d["choices"] = [list(c) for c in self.choices]
@@ -61,7 +61,7 @@ class Param:
 
     def check(self, value):
         """The value converted and checked; RetimeError with a readable message if it is not valid."""
-        if self.kind == "number":
+        if self.kind in ("number", "slider"):
             try:
                 v = float(value)
             except (TypeError, ValueError):
@@ -197,6 +197,8 @@ class GuidedMethod(Method):
               help="most analysis frames one output frame may advance (Hsu §3.1)"),
         Param("neighbors", "Neighbours", "number", 3.0, 1.0, 10.0, 1.0, help="k nearest reference features (Hsu §4.3)"),
         Param("fast", "Coarse-to-fine", "bool", False, help="the heuristic of Hsu §3.3 instead of the exact search"),
+        Param("blend", "Reference influence", "slider", 1.0, 0.0, 1.0, 0.05,
+              help="0: the smooth spline through the keytimes; 1: the guided warp; between: a mix (Hsu §5)"),
     )
 
     def solve(self, job):
@@ -210,7 +212,8 @@ class GuidedMethod(Method):
             reference = self.clip.reference
         keys = keytimes_of(job.points, locked_only=True)
         settings = Settings(reference=reference, max_skip=int(params.get("max_skip", 8)),
-                            neighbors=int(params.get("neighbors", 3)), fast=bool(params.get("fast", False)))
+                            neighbors=int(params.get("neighbors", 3)), fast=bool(params.get("fast", False)),
+                            blend=float(params.get("blend", Settings.blend)))
         result = solve("guided", self.clip.motion, Request(duration=job.duration, keytimes=keys, settings=settings))
         curve = result.curve
         info = {"keytimes": len(keys), "objective": result.info["objective"], "exact": result.info["exact"]}

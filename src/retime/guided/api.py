@@ -332,7 +332,7 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
         raise RetimeError(f"the reference is {reference.duration:.3g} s long: at {A:g} Hz that is "
                           f"{z.shape[0]} frame(s), and the local score needs at least 3")
     m = None if free else pos[-1] + 1
-    problem = WarpProblem(x, z, A, m, fixed, s, int(neighbors), weights, knn, float(eps), squared=score == "steady")
+    problem = WarpProblem(x, z, A, m, fixed, s, int(neighbors), weights, knn, float(eps))
     stats = SolveStats()
     progress = _Progress(quiet)
     if free:

@@ -63,7 +63,7 @@ def coarse_problem(problem: WarpProblem, factor: int):
     if zs.shape[0] < 2 * stride + 1:  # reference too short for coarse features: fall back to stride 1
         stride = problem.ref_stride
     coarse = WarpProblem(xs, zs, problem.fps / c, len(cpos), cfixed, problem.s, problem.k, problem.weights,
-                         problem.knn, problem.eps, stride, problem.squared)
+                         problem.knn, problem.eps, stride)
     return coarse, cpos, cfrm
 
 

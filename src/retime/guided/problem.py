@@ -34,7 +34,6 @@ class WarpProblem:
     knn: str = "exact"  # or "approx"
     eps: float = 0.0  # relative error bound of the approximate search
     ref_stride: int = 1  # reference features from frames (r - st, r, r + st)
-    squared: bool = False  # mean squared distances (the steady objective's table) instead of the paper's
 
     @property
     def n(self) -> int:
@@ -52,7 +51,7 @@ class WarpProblem:
 
     def scores(self, mask=None) -> np.ndarray:
         return score_table(self.x, self.z, self.coefficients(), self.s, self.k, mask=mask,
-                           method=self.knn, eps=self.eps, ref_stride=self.ref_stride, squared=self.squared)
+                           method=self.knn, eps=self.eps, ref_stride=self.ref_stride)
 
 
 def band_mask(band: dp.Band, n: int, s: int) -> np.ndarray:

@@ -2,10 +2,7 @@
 
 ``f(i, j, k)`` is the mean Euclidean distance from the feature vector of the
 frame triple ``(i, j, k)`` (see :mod:`retime.guided.features`) to its ``K``
-nearest reference feature vectors. With ``squared=True`` it is the mean *squared*
-distance to the same neighbours: a playback-speed error then costs quadratically, not
-linearly, so a uniform speed costs less than a mix of faster and slower stretches with the
-same average (the paper's score makes them tie; see :mod:`retime.guided.steady`).
+nearest reference feature vectors.
 
 Score table layout: ``F[j, d-1, e-1] = f(j-d, j, j+e)`` for ``1 <= d, e <= s``
 (``s`` = skip limit), shape ``(n, s, S8)`` with ``S8 = 8 * ceil(s / 8)`` (the DP reads
@@ -56,9 +53,8 @@ def _base_row(zz, pi, pj, base):
 
 
 @njit(cache=True, inline="always")
-def _mean_root(H, i, j, d, e, a2, b2, c2, top, K, squared):
-    """Mean over q < K of sqrt(|y|^2 + top[q]) (``squared``: of |y|^2 + top[q]) for the triple
-    (i, j, k = j+1+e), i = j - d.
+def _mean_root(H, i, j, d, e, a2, b2, c2, top, K):
+    """Mean over q < K of sqrt(|y|^2 + top[q]) for the triple (i, j, k = j+1+e), i = j - d.
 
     |y|^2 = a2 |x_j|^2 + b2 |x_k - x_i|^2 + c2 |x_k - 2 x_j + x_i|^2 from the Gram band H.
     """
@@ -72,13 +68,12 @@ def _mean_root(H, i, j, d, e, a2, b2, c2, top, K, squared):
     acc = 0.0
     for q in range(K):
         v = yy + top[q]
-        v = v if v > 0.0 else 0.0
-        acc += v if squared else math.sqrt(v)
+        acc += math.sqrt(v) if v > 0.0 else 0.0
     return acc / K
 
 
 @njit(cache=True, parallel=True, fastmath={"nsz", "contract"})
-def _knn3_kernel(PI, PJ, PK, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, squared, mask, out):
+def _knn3_kernel(PI, PJ, PK, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out):
     """Exact K <= 3 smallest distances for every triple with middle frame j in [j0, j1).
 
     For a vertex (i, j): ``base[r] = |z_r|^2 - 2 (PI[i, r] + PJ[j, r])`` and, for each
@@ -227,11 +222,11 @@ def _knn3_kernel(PI, PJ, PK, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, squared, ma
                 top[0] = m1
                 top[1] = m2
                 top[2] = m3
-                out[j, d - 1, e] = _mean_root(H, i, j, d, e, a2, b2, c2, top, K, squared)
+                out[j, d - 1, e] = _mean_root(H, i, j, d, e, a2, b2, c2, top, K)
 
 
 @njit(cache=True, parallel=True)
-def _knn_kernel(PI, PJ, PK, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, squared, mask, out):
+def _knn_kernel(PI, PJ, PK, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out):
     """Same as :func:`_knn3_kernel` for any K (sorted insertion with a branch)."""
     R = zz.shape[0]
     for j in prange(j0, j1):
@@ -260,7 +255,7 @@ def _knn_kernel(PI, PJ, PK, zz, H, t0, j0, j1, n, s, K, a2, b2, c2, squared, mas
                             top[q] = top[q - 1]
                             q -= 1
                         top[q] = v
-                out[j, d - 1, e] = _mean_root(H, i, j, d, e, a2, b2, c2, top, K, squared)
+                out[j, d - 1, e] = _mean_root(H, i, j, d, e, a2, b2, c2, top, K)
 
 
 @njit(cache=True, parallel=True)
@@ -290,7 +285,7 @@ def _projections(G, st, a2, b2, c2, PI, PJ, PK):
 _F8_2 = numba.float64[:, ::1]
 _KNN_SIG = numba.void(
     _F8_2, _F8_2, _F8_2, numba.float64[::1], _F8_2, numba.int64, numba.int64, numba.int64,
-    numba.int64, numba.int64, numba.int64, numba.float64, numba.float64, numba.float64, numba.boolean,
+    numba.int64, numba.int64, numba.int64, numba.float64, numba.float64, numba.float64,
     numba.boolean[:, ::1], numba.float64[:, :, ::1])
 
 
@@ -357,15 +352,14 @@ def effective_k(k: int, r: int, st: int = 1) -> int:
     return max(1, min(int(k), int(r) - 2 * int(st)))
 
 
-def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_stride=1, squared=False,
-                block_bytes=96 << 20):
+def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_stride=1, block_bytes=96 << 20):
     """Local scores of all frame triples with gaps <= s.
 
     x: (n, D) input poses at the analysis rate (already low-passed);
     z: (r, D) reference poses at the same rate; coeffs: ``FeatureWeights.coefficients(fps)``;
     mask: optional (n, s) bool, ``mask[j, d-1]`` = scores with vertex (j-d, j) are wanted;
     ref_stride: reference features come from frames (r - st, r, r + st) (every r: a reference
-    played at 1/st of the analysis rate, all phases kept); squared: mean squared distances.
+    played at 1/st of the analysis rate, all phases kept).
     Returns F (n, s, table_width(s)) float64, see the module docstring for the layout.
     """
     st = int(ref_stride)
@@ -379,7 +373,7 @@ def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_st
         if mask.shape != (n, s):
             raise ValueError(f"mask shape {mask.shape} != {(n, s)}")
     if method == "approx":
-        return _score_table_kdtree(x, z, coeffs, s, K, mask, eps, st, squared)
+        return _score_table_kdtree(x, z, coeffs, s, K, mask, eps, st)
     if method != "exact":
         raise RetimeError(f"unknown kNN method {method!r} (use 'exact' or 'approx')")
     out = np.full((n, s, table_width(s)), INF)
@@ -428,7 +422,7 @@ def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_st
                 pending = pool.submit(product, b + 1)
             # small dynamic chunks: a thread that the OS preempts does not hold up the other
             with numba.parallel_chunksize(max(1, (j1 - j0) // (16 * numba.get_num_threads()))):
-                kernel(PI, PJ, PK, zzp, H, t0, j0, j1, n, s, K, a2, b2, c2, bool(squared), mask, out)
+                kernel(PI, PJ, PK, zzp, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out)
     return out
 
 
@@ -442,7 +436,7 @@ def all_triples(n, s, mask=None):
     return i[ok], j[ok], k[ok], d[ok], e[ok]
 
 
-def _score_table_kdtree(x, z, coeffs, s, K, mask, eps, st=1, squared=False, chunk=200_000):
+def _score_table_kdtree(x, z, coeffs, s, K, mask, eps, st=1, chunk=200_000):
     from scipy.spatial import cKDTree
 
     n = x.shape[0]
@@ -456,11 +450,11 @@ def _score_table_kdtree(x, z, coeffs, s, K, mask, eps, st=1, squared=False, chun
         y = triple_features(xc, i[sl], j[sl], k[sl], coeffs)
         dist, _ = tree.query(y, k=K, eps=float(eps), workers=-1)
         dist = np.asarray(dist).reshape(len(y), -1)
-        out[j[sl], d[sl] - 1, e[sl] - 1] = (dist ** 2 if squared else dist).mean(axis=1)
+        out[j[sl], d[sl] - 1, e[sl] - 1] = dist.mean(axis=1)
     return out
 
 
-def score_table_bruteforce(x, z, coeffs, s, k=3, ref_stride=1, squared=False):
+def score_table_bruteforce(x, z, coeffs, s, k=3, ref_stride=1):
     """Plain NumPy reference implementation: explicit feature vectors, all distances, sort.
 
     Same layout and meaning as :func:`score_table`. Used by tests and the benchmark.
@@ -478,7 +472,7 @@ def score_table_bruteforce(x, z, coeffs, s, k=3, ref_stride=1, squared=False):
         y = triple_features(x, i[sl], j[sl], kk[sl], coeffs)
         dist = np.sqrt(((y[:, None, :] - zf[None, :, :]) ** 2).sum(axis=2))
         part = np.partition(dist, K - 1, axis=1)[:, :K] if K < dist.shape[1] else dist
-        out[j[sl], d[sl] - 1, e[sl] - 1] = (part ** 2 if squared else part).mean(axis=1)
+        out[j[sl], d[sl] - 1, e[sl] - 1] = part.mean(axis=1)
     return out
 
 
