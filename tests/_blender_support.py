@@ -99,15 +99,22 @@ def max_error_over_height(names_a, a, names_b, b, height):
     return float(np.linalg.norm(a[:, ia] - b[:, ib], axis=-1).max() / height)
 
 
-def play_addon_script(folder: Path, script: str):
-    """CMU 16_06 as BVH in ``folder``, the add-on built, and ``script`` run in bpy on them as
-    ``script ADDON.zip 16_06.bvh FOLDER RESULTS.json`` against this tree's retime: (its run, its results)."""
+def play_addon_script(folder: Path, script: str, frame_time_factor: float = 1.0):
+    """CMU 16_06 as BVH in ``folder`` (its Frame Time times ``frame_time_factor``), the add-on built, and
+    ``script`` run in bpy on them as ``script ADDON.zip 16_06.bvh FOLDER RESULTS.json`` against this
+    tree's retime: (its run, its results)."""
     import json
 
     from retime.data import bundled_path
 
-    code, _, err = run_retime("convert", bundled_path("16_06.amc"), folder / "16_06.bvh")
-    assert code == 0, err
+    if frame_time_factor == 1.0:
+        code, _, err = run_retime("convert", bundled_path("16_06.amc"), folder / "16_06.bvh")
+        assert code == 0, err
+    else:
+        from retime.motion import load_motion, save_bvh
+        from retime.motion.mistakes import wrong_frame_time
+
+        save_bvh(wrong_frame_time(load_motion(bundled_path("16_06.amc")), frame_time_factor), folder / "16_06.bvh")
     exe = retime_wrapper(folder)
     done = run_bpy(script, build_addon(folder / "dist"), folder / "16_06.bvh", folder, folder / "results.json",
                    env=blender_env(folder, RETIME_EXECUTABLE=str(exe)))

@@ -19,7 +19,8 @@ require("fastapi", "pip install 'retime[editor]'")
 require("uvicorn", "pip install 'retime[editor]'")
 
 from retime.data import bundled_path  # noqa: E402
-from retime.motion import load_motion  # noqa: E402
+from retime.motion import load_motion, save_bvh  # noqa: E402
+from retime.motion.mistakes import wrong_frame_time  # noqa: E402
 from retime.physics.check import check_clip  # noqa: E402
 
 from _editor_support import CHROMIUM_ARGS, require_browser, wait_js  # noqa: E402
@@ -35,8 +36,12 @@ def page_and_check(tmp_path_factory):
     from retime.editor.server import BackgroundServer, create_app, load_clip
 
     shots = Path(os.environ.get("RETIME_EDITOR_SHOTS") or tmp_path_factory.mktemp("shots"))
-    clip = load_clip(bundled_path(CLIP))
-    report = check_clip(load_motion(bundled_path(CLIP))).report()
+    # played too fast (Frame Time x0.8): the check judges its landing (a flight that falls at g and its
+    # landing are left out of the verdict, so the clip as captured has no worst frame)
+    bvh = tmp_path_factory.mktemp("clip") / "16_06.bvh"
+    save_bvh(wrong_frame_time(load_motion(bundled_path(CLIP)), 0.8), bvh)
+    clip = load_clip(bvh)
+    report = check_clip(load_motion(bvh)).report()
     with BackgroundServer(create_app(clip, tmp_path_factory.mktemp("edits"))) as url, sync_playwright() as p:
         browser = p.chromium.launch(executable_path=path, args=CHROMIUM_ARGS)
         page = browser.new_page(viewport={"width": 1400, "height": 900})
@@ -49,7 +54,8 @@ def page_and_check(tmp_path_factory):
         browser.close()
 
 
-def show_frame(page, frame, fps=120.0):
+def show_frame(page, frame):
+    fps = page.evaluate("window.__retime.clip.fps")
     page.evaluate("window.__retime.playing = false")
     page.evaluate(f"window.__retime.playT = {frame / fps}; window.__retime.dirty = true")
     wait_js(page, f"window.__retime.viewer.shownForces && window.__retime.viewer.shownForces.frame === {frame}")
@@ -64,7 +70,8 @@ def test_the_page_gets_the_checks_report(page_and_check):
     for foot in ("left", "right"):  # 16_06 is Y up in metres: the viewer's world is the file's
         np.testing.assert_allclose(check["feet"][foot]["force"], [f["foot_force"][foot] for f in report["frames"]],
                                    atol=1e-4)
-    assert "physics of the original: physical as captured" in page.inner_text("#check-info")
+    assert f"physics of the original: {report['verdict']}" in page.inner_text("#check-info")
+    assert "[frame_rate]" in report["verdict"]  # the clip plays 1.25x too fast, and the page says so
     assert not errors, errors
 
 
