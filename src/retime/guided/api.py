@@ -373,6 +373,7 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
         warp = steady_warp(F, frames, steady_fixed, steadiness, natural)
         stats.optimization_s += time.perf_counter() - t0
         stats.extra["discrete_objective"] = objective
+        stats.extra["steady_segments_kept"] = warp.kept  # left as the whole-frame warp: no steady warp fits
         objective = warp.objective
         src_t = np.interp(warp.frames, np.arange(n), grid_times)
     else:

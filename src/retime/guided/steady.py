@@ -39,7 +39,6 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from retime.errors import RetimeError
 
 INF = np.inf
 #: fine grid points per mean step of a segment: the count in this range that puts the natural
@@ -56,6 +55,7 @@ CORRIDOR = 24
 class SteadyWarp:
     frames: np.ndarray  # (m,) fractional grid frames at the output frames
     objective: float  # the steady objective of that warp
+    kept: int = 0  # segments left as the whole-frame warp (no steady warp within the step limits)
 
 
 def _fill_gaps(D):
@@ -240,8 +240,8 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
     h = N / (M * fine)  # grid frames per fine point
     kmin = max(1, math.ceil(1.0 / h - 1e-9))  # at least one grid frame per output frame, as the DP
     kmax = math.floor(s / h + 1e-9)  # at most the skip limit
-    if not kmin <= fine <= kmax:
-        raise RetimeError(f"the steady refinement has no steps between 1 and {s} grid frames here")
+    if not kmin <= fine <= kmax:  # no fine steps between 1 and s grid frames: the caller keeps y
+        return None, math.inf
     lam = penalty_weight(D, a0, a1, N / M, steadiness)
     lb = np.zeros(M + 1, dtype=np.int64)
     ub = np.full(M + 1, M * fine, dtype=np.int64)
@@ -251,7 +251,7 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
     K = kmax - kmin + 1
     if int((hi - lo + 1).max()) * K * K <= FULL_BAND_STATES:
         q, obj = _segment_dp(D, S, float(a0), h, lo, hi, kmin, kmax, float(lam))
-        return a0 + q * h, float(obj)
+        return (a0 + q * h, float(obj)) if np.isfinite(obj) else (None, math.inf)
     centre = (np.asarray(y, dtype=float) - a0) / h
     radius = corridor / h
     for _ in range(max_passes):
@@ -264,8 +264,8 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
         if not touches or not np.isfinite(obj):
             break
         centre = q.astype(float)
-    if not np.isfinite(obj):
-        raise RetimeError("the steady refinement found no warp with a finite score")
+    if not np.isfinite(obj):  # no warp with a finite score (a clip too short or too broken for it)
+        return None, math.inf
     return a0 + q * h, float(obj)
 
 
@@ -283,10 +283,12 @@ def steady_warp(F, frames, fixed_positions, steadiness: float, natural=1.0,
     cuts = sorted({0, m - 1, *[int(p) for p in fixed_positions if 0 <= int(p) < m]})
     natural = np.broadcast_to(np.asarray(natural, dtype=float), (m,))
     out = np.empty(m)
-    total = 0.0
+    total, kept = 0.0, 0
     for p0, p1 in zip(cuts, cuts[1:]):
         part, obj = _refine_segment(D, S, frames[p0:p1 + 1], int(frames[p0]), int(frames[p1]), F.shape[1], steadiness,
                                     float(natural[p0]), int(corridor))
+        if part is None:  # the whole-frame warp stands for this segment (said by the caller)
+            part, obj, kept = frames[p0:p1 + 1].astype(float), 0.0, kept + 1
         out[p0:p1 + 1] = part
         total += obj
-    return SteadyWarp(out, total)
+    return SteadyWarp(out, total, kept)
