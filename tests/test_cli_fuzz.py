@@ -1,6 +1,7 @@
-"""Mutation fuzzing of every command over every file kind it reads (issue 12: 7). Each run must end
-with exit 0, or exit 2 and one line on stderr; never a traceback, never an output left behind after
-a failure, never a changed input. Seeded (failures reproduce) and bounded in time."""
+"""Mutation fuzzing of every command over every file kind it reads (issue 12: 7), and of batch layouts
+and jobs files (issue 22). Each run must end with exit 0, or exit 2 and one line on stderr; never a
+traceback, never an output left behind after a failure, never a changed input. Seeded (failures
+reproduce) and bounded in time."""
 from __future__ import annotations
 
 import io
@@ -124,3 +125,111 @@ def test_mutated_inputs_fail_cleanly(kind, seeds, tmp_path):
                 p.unlink()
         runs += 1
     assert runs >= 5
+
+
+# ------------------------------------------------------------------ batch: jobs files and layouts (issue 22)
+# Clips run in this process (run_clip, as a worker runs them) instead of on a Dask cluster, so that a few
+# hundred layouts fit the budget; the cluster, its signals and its failures are tests/test_batch*.py's.
+BATCH_BUDGET_S = 20.0
+NAMES = ["a.bvh", "b.bvh", "summary.bvh", ".retime-batch.bvh", "index.bvh", "jobs.bvh", "x.bvh"]
+
+
+@pytest.fixture
+def inline_batch(monkeypatch):
+    import retime.batch.run as batch_run
+
+    def compute(client, clips, outputs, digests, todo, results, manifest, method, gravity_scale, *_):
+        for i in todo:
+            results[i] = batch_run.run_clip(batch_run.clip_argv(clips[i], method, outputs[i], gravity_scale))
+            if results[i]["status"] == "done":
+                manifest.record(clips[i], digests[i], 0.0)
+            else:
+                manifest.forget(clips[i])
+
+    monkeypatch.setattr(batch_run, "_connect", lambda scheduler, workers: (None, None))
+    monkeypatch.setattr(batch_run, "_compute", compute)
+
+
+def _layout(root: Path, rng, bvh_text: str) -> tuple[list[str], Path, list[Path]]:
+    """A random tree of clips (subfolders, names like the batch's files, X.amc beside X.bvh, symlinks to
+    inputs, dangling and looping ones, jobs files naming clips and references), an OUTDIR inside, equal
+    to or above the inputs, or apart; returns (the batch's inputs, OUTDIR, the files it must not change)."""
+    inp = root / "in"
+    (inp / "sub").mkdir(parents=True)
+    files = []
+    for name in rng.choice(NAMES, size=int(rng.integers(1, 5)), replace=False):
+        folder = inp / "sub" if rng.random() < 0.3 else inp
+        (folder / name).write_text(bvh_text)
+        files.append(folder / name)
+    if rng.random() < 0.4:  # X.amc beside X.bvh
+        (inp / "16.asf").write_text(bundled_path("16.asf").read_text())
+        amc = bundled_path("16_15.amc").read_text().splitlines()
+        (inp / "x.amc").write_text("\n".join(amc[: amc.index("9")]) + "\n")
+        files += [inp / "16.asf", inp / "x.amc"]
+    kind = int(rng.integers(0, 3))
+    if kind == 0 and rng.random() < 0.5:  # symlinks among the inputs
+        (inp / "link.bvh").symlink_to(files[0])
+        (inp / "dangling.bvh").symlink_to(inp / "gone.bvh")
+    if kind == 1:  # a jobs file beside the clips, a reference among them
+        motions = [f for f in files if f.suffix in (".bvh", ".amc")]
+        rows = ["motion,scale,reference"]
+        for f in motions[: int(rng.integers(1, len(motions) + 1))]:
+            ref = motions[int(rng.integers(0, len(motions)))].relative_to(inp) if rng.random() < 0.3 else ""
+            rows.append(f"{f.relative_to(inp)},{rng.choice(['0.5', '2', ''])},{ref}")
+        jobs = inp / rng.choice(["jobs.csv", "summary.csv"])
+        jobs.write_text("\n".join(rows) + "\n")
+        files.append(jobs)
+        inputs = [str(jobs)]
+    else:
+        inputs = [str(inp)] if rng.random() < 0.6 else [str(f) for f in files if f.suffix in (".bvh", ".amc")]
+    outdir = [root / "out", inp, inp / "out", root, inp / "sub"][int(rng.integers(0, 5))]
+    return inputs, outdir, files
+
+
+def test_batch_layouts_and_jobs_files_never_lose_data(tmp_path, inline_batch):
+    """Whatever the layout (OUTDIR inside, equal to or above the inputs; colliding names; a mutated
+    jobs file): exit 0, 1 or 2 with one line; no input, reference or jobs file changed; after a refusal
+    no batch file written; after a run, a summary with one row per clip and every 'done' clip's outputs."""
+    import csv
+
+    from retime.batch.jobs import Defaults, find_clips
+
+    bvh_text = _cut_bvh()
+    rng = np.random.default_rng(22)
+    codes: dict[int, int] = {}
+    deadline = time.monotonic() + BATCH_BUDGET_S
+    runs = 0
+    while time.monotonic() < deadline and runs < 300:
+        root = tmp_path / f"case{runs}"
+        inputs, outdir, files = _layout(root, rng, bvh_text)
+        jobs = [Path(i) for i in inputs if i.endswith(".csv")]
+        if jobs and rng.random() < 0.5:
+            jobs[0].write_text(mutate(jobs[0].read_text(), rng))
+        before = {f: f.read_bytes() for f in files}
+        argv = ["batch", *inputs, "-o", str(outdir), "--method", "linear", "--scale", "0.5", "--quiet"]
+        code, err = _run(argv)
+        what = f"case {runs}: retime {' '.join(argv)}\n" + "\n".join(
+            f"  {p.relative_to(root)}" for p in sorted(root.rglob("*")))
+        assert code in (0, 1, 2), (what, code, err)
+        assert "Traceback" not in err, (what, err)
+        for f, data in before.items():
+            assert f.read_bytes() == data, (what, f"{f} changed")
+        summary = outdir / "summary.csv"
+        if code == 2:
+            assert len([ln for ln in err.splitlines() if ln.strip()]) == 1, (what, err)
+            assert summary not in before and not summary.exists() or summary in before, what
+        else:
+            with open(summary, newline="", encoding="utf-8") as f:
+                table = list(csv.DictReader(f))
+            skipped = []
+            clips = find_clips(inputs, Defaults(scale=0.5), outdir=outdir, skipped=skipped)
+            assert len(table) == len(clips) + len(skipped), what  # rows: the clips in order, then the skipped
+            for row, clip in zip(table, clips):
+                assert row["status"] in ("done", "failed"), (what, row)
+                outputs = clip.outputs(outdir, "linear").values()
+                assert row["status"] != "done" or all(p.is_file() for p in outputs), (what, row)
+            assert (code == 1) == any(r["status"] == "failed" for r in table), what
+        codes[code] = codes.get(code, 0) + 1
+        runs += 1
+    print(f"batch fuzz: {runs} layouts, exit codes {codes}")
+    assert runs >= 10 and len(codes) >= 2, codes  # both refusals and runs were tried
