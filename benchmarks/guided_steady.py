@@ -102,7 +102,7 @@ def clip_flights(motion, kind):
         return []
     contact = foot_contacts(motion)
     if kind == "jump":
-        f = longest_flight(contact, motion.fps)
+        f = longest_flight(contact, np.arange(motion.n_frames) / motion.fps)  # the flight the demo and reports give
         return [f] if f else []
     return flights(contact, motion.fps, min_frames=2)
 
