@@ -165,6 +165,31 @@ def test_a_folder_made_by_another_method_is_refused(tmp_path, short_bvh):
     assert digests(out) == before
 
 
+def test_a_folder_of_a_killed_batch_is_refused_to_another_method(tmp_path, short_bvh):
+    """The manifest a batch saves as it goes names its method from the first save: a batch killed
+    mid-run (SIGKILL: no summary, no final save) still keeps another method out of its folder."""
+    pytest.importorskip("distributed")
+    folder = copies(short_bvh, tmp_path / "in", 30)
+    out = tmp_path / "out"
+    batch = subprocess.Popen([sys.executable, "-c", RETIME, "batch", str(folder), "-o", str(out), "--method", "guided",
+                              "--scale", "0.6", "--workers", "1", "--quiet"],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        _wait_for(lambda: batch.poll() is not None or (out / ".retime-batch.json").exists(), 90, "the first save")
+    finally:
+        if batch.poll() is None:
+            os.killpg(batch.pid, signal.SIGKILL)
+        batch.wait()
+    assert json.loads((out / ".retime-batch.json").read_text())["clips"], "killed before a clip was recorded"
+    assert not (out / "summary.csv").exists(), "the batch finished before it was killed"
+    kept = lambda: {k: v for k, v in digests(out).items() if k != ".retime-batch.lock"}  # noqa: E731 (the dead run's)
+    before = kept()
+    code, _, err = run(["batch", str(folder), "-o", str(out), "--method", "linear", "--scale", "0.5", "--workers", "1",
+                        "--quiet"])
+    assert code == 2 and "holds the outputs of a --method guided batch" in one_line_error(err)
+    assert kept() == before
+
+
 # ------------------------------------------------------------------------------ D5: a lock
 HOLD_LOCK = ("import sys, time; from pathlib import Path; from retime.batch.lock import FolderLock; "
              "FolderLock(Path(sys.argv[1])).acquire(); print('locked', flush=True); time.sleep(60)")

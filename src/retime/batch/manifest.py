@@ -47,12 +47,14 @@ class Manifest:
         except (OSError, ValueError):  # none yet, or unreadable: every clip runs
             pass
 
-    def check_method(self, method: str) -> None:
-        """Refuse a folder holding another method's outputs: their files share names (a check report
-        would replace a physics report beside its motion) and a summary would mix the two."""
+    def claim(self, method: str) -> None:
+        """Refuse a folder holding another method's outputs (their files share names: a check report
+        would replace a physics report beside its motion, and a summary would mix the two); else the
+        folder is ``method``'s from the manifest's first save on, so a batch killed mid-run keeps it."""
         if self.clips and self.method is not None and self.method != method:
             raise RetimeError(f"{self.path.parent}: holds the outputs of a --method {self.method} batch "
                               f"(see {self.path.name}); write the {method} batch to another folder")
+        self.method = method
 
     def is_current(self, clip: Clip, digest: str | None, outputs: dict[str, Path]) -> bool:
         entry = self.clips.get(str(clip.name))

@@ -241,7 +241,7 @@ def run_batch(clips: list[Clip], outdir: Path, method: str, *, gravity_scale: fl
 
 def _run_locked(clips, outdir, method, lock, stop, *, gravity_scale, scheduler, workers, force, quiet, skipped):
     manifest = Manifest(outdir)
-    manifest.check_method(method)
+    manifest.claim(method)
     options = {"gravity_scale": gravity_scale}
     shown = [str(c.motion) for c in clips]  # as the user named them
     clips = [with_absolute_paths(c) for c in clips]
@@ -278,7 +278,6 @@ def _run_locked(clips, outdir, method, lock, stop, *, gravity_scale, scheduler, 
     if stop.signal is not None or lost is not None:
         unfinished = "interrupted before it finished" if lost is None else f"not run: {lost}"
         _read_back_from_disk(clips, outputs, digests, todo, results, manifest, lock.started_ns(), unfinished)
-    manifest.method = method
     manifest.save()
     curves = [read_warp(outputs[i]["warp"]) if results[i]["status"] != "failed" and "warp" in outputs[i] else None
               for i in range(len(clips))]  # each warp file read once, for the row and the page
