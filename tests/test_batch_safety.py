@@ -371,6 +371,31 @@ def test_a_stopped_rerun_leaves_a_summary_and_manifest_of_what_is_on_disk(tmp_pa
     assert {name for name, r in rows(out).items() if r["status"] == "skipped"} == new
 
 
+@pytest.mark.parametrize("stage", ["_close", "write_summary_csv"])
+def test_a_signal_after_the_clips_still_leaves_the_summary(tmp_path, short_bvh, monkeypatch, stage):
+    """A first SIGTERM while the cluster closes or the summary is written (seconds, for a large batch):
+    the summary is still written, of every clip done, and the exit code and line are SIGTERM's."""
+    pytest.importorskip("distributed")
+    import retime.batch.run as batch_run
+
+    real = getattr(batch_run, stage)
+
+    def signalled(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)  # its handler runs in this (the main) thread, at once
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(batch_run, stage, signalled)
+    handler = signal.getsignal(signal.SIGTERM)
+    folder = copies(short_bvh, tmp_path / "in", 2)
+    out = tmp_path / "out"
+    code, _, err = run(["batch", str(folder), "-o", str(out), "--method", "linear", "--scale", "0.5", "--workers", "1",
+                        "--quiet"])
+    assert code == 143 and one_line_error(err) == "retime batch: terminated; finished clips kept (see summary.csv)"
+    assert {name: r["status"] for name, r in rows(out).items()} == {"clip00.bvh": "done", "clip01.bvh": "done"}
+    assert "2 done" in (out / "index.html").read_text()
+    assert signal.getsignal(signal.SIGTERM) == handler  # put back
+
+
 # ------------------------------------------------------------------------------ T4, H1: a scheduler
 def test_a_lost_scheduler_is_one_line_and_rows_that_say_so(tmp_path, short_bvh):
     """H1: waiting on a scheduler with no worker says so; T4: a scheduler that dies mid-batch ends it

@@ -166,12 +166,14 @@ def _on_main_thread() -> bool:
 
 
 class _Stop:
-    """SIGINT and SIGTERM stop the batch: the first raises KeyboardInterrupt where the driver is;
-    later ones are only counted, so that the summary of what is on disk is still written."""
+    """SIGINT and SIGTERM stop the batch: the first raises KeyboardInterrupt where the driver is, until
+    :meth:`hold`; later ones, and any after it, are only noted, so that the summary of what is on disk
+    is still written."""
 
     def __init__(self):
         self.signal: int | None = None
         self.previous = {}
+        self.raising = True
 
     def __enter__(self):
         if _on_main_thread():
@@ -182,7 +184,13 @@ class _Stop:
     def _handle(self, signum, frame):
         if self.signal is None:
             self.signal = signum
-            raise KeyboardInterrupt
+            if self.raising:
+                raise KeyboardInterrupt
+
+    def hold(self) -> None:
+        """The clips are over: from here a signal must not cut off the summary (the cluster's closing
+        and the summary of a large batch take seconds)."""
+        self.raising = False
 
     def __exit__(self, *exc):
         for signum, handler in self.previous.items():
@@ -274,6 +282,7 @@ def _run_locked(clips, outdir, method, lock, stop, *, gravity_scale, scheduler, 
     except Exception as e:  # the client failed some other way: say so, and still keep what finished
         lost = f"the Dask client failed ({type(e).__name__}: {e})".splitlines()[0]
     finally:
+        stop.hold()
         _close(client, cluster)  # a local cluster's workers are gone after this: the disk is final
     if stop.signal is not None or lost is not None:
         unfinished = "interrupted before it finished" if lost is None else f"not run: {lost}"
