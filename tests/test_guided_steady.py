@@ -100,6 +100,12 @@ def test_blend_keeps_keytimes_and_range(jump):
     assert float(res.curve(0.0)) == 0.0 and float(res.curve(2.0)) == pytest.approx(jump.duration)
 
 
+def test_blend_keeps_a_keytime_between_frames(jump):
+    """A keytime whose output time falls between frames (0.9042 s at 120 Hz) holds in the mix too."""
+    res = guided_solve(jump, duration=2.0, keytimes=[(1.5, 0.9042)], blend=0.4)
+    assert float(res.curve(0.9042)) == pytest.approx(1.5, abs=1e-9)
+
+
 def test_blend_and_score_errors(jump):
     from retime.errors import RetimeError
 

@@ -393,21 +393,22 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
     raw = TimingCurve(out_t, src_t, kind="linear")
     if blend < 1.0:
         spline = keytime_warp(S, keys, curve.duration, smooth=True)
-        curve = blended(spline, curve, blend, motion.fps)
+        curve = blended(spline, curve, blend, motion.fps, [t for _, t in keys])
     stats.extra["total_s"] = time.perf_counter() - t_start
     return GuidedResult(curve, raw, objective, exact, frames, out_t, src_t, n, len(frames),
                         z.shape[0], s, int(neighbors), A, ups, stats)
 
 
-def blended(spline: TimingCurve, guided: TimingCurve, weight: float, fps: float) -> TimingCurve:
-    """(1 - weight) spline + weight guided, exact at the frames of ``fps`` (Hsu et al. sec. 5: a
+def blended(spline: TimingCurve, guided: TimingCurve, weight: float, fps: float, keys_out=()) -> TimingCurve:
+    """(1 - weight) spline + weight guided, exact at the frames of ``fps`` and at the keytimes' output
+    times ``keys_out`` (where both curves agree, so the mix keeps them) (Hsu et al. sec. 5: a
     control of the reference's influence). Weight 0 is ``spline`` itself, 1 is ``guided``; either
     curve is monotone, so their mix is, and a phase's speed moves linearly with the weight."""
     if weight <= 0.0:
         return spline
     if weight >= 1.0:
         return guided
-    t = np.union1d(guided.frame_times(fps), [guided.duration])
+    t = np.union1d(guided.frame_times(fps), [guided.duration, *keys_out])
     return TimingCurve(t, (1.0 - weight) * spline(t) + weight * guided(t), kind="pchip")
 
 
