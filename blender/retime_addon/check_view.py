@@ -70,8 +70,7 @@ class CheckJob(ArmatureJob):
             raise RetimeAddonError(f"retime check wrote no readable report {self.report_path}: {e}") from None
         length = self.props.force_length or default_force_length(context, self.obj)
         show(context, report, self.start, length, self.action.name)
-        verdict = report.get("verdict") or ("physical as captured" if report["summary"]["physical"] else "NOT physical")
-        said = " ".join(f"Check {self.action.name!r}: {verdict}".split())
+        said = " ".join(f"Check {self.action.name!r}: {report['verdict']}".split())
         return {"INFO"} if report["summary"]["physical"] else {"WARNING"}, said
 
 
@@ -187,7 +186,7 @@ def show(context, report, start, length, label):
         _key_arrow(_empty(coll, arrow_name(foot), "SINGLE_ARROW", 1.0), frames, points[foot], forces[foot], length)
     _key_arrow(_empty(coll, RESIDUAL_ARROW, "SINGLE_ARROW", 1.0), frames, com,
                to_blender([r["residual_force"] for r in rows]), length)
-    threshold = float(report.get("residual_threshold", 0.25))
+    threshold = float(report["residual_threshold"])
     for i, name in _marker_frames(residual, report["summary"]["worst_frames"], threshold):
         scene.timeline_markers.new(name, frame=int(start + i))
     scene.frame_set(scene.frame_current)
