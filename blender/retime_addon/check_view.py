@@ -15,15 +15,13 @@ removes it. Report frame i is the action's frame start + i; the BVH's axes are B
 (:data:`armature.TO_Y_UP`) and its unit the scene's."""
 import json
 import os
-import shutil
-import time
 
 import bpy
 import numpy as np
 
 from . import armature
-from .operator import _one_line, animated_armature, exchange_folder, export_bvh, preferences
-from .runner import RetimeAddonError, Run, retime_executable
+from .operator import ArmatureJob, export_bvh
+from .runner import BackgroundRunOperator, RetimeAddonError, Run
 
 COLLECTION = "Retime Check"
 TAG = "retime_check"  # custom property on every object, action and the collection a check made
@@ -41,30 +39,29 @@ def to_blender(vectors):
     return np.asarray(vectors, dtype=float) @ armature.TO_Y_UP
 
 
-class CheckJob:
+class CheckJob(ArmatureJob):
     """One check of one armature's action: export, run, show."""
 
     def __init__(self, context, props):
-        self.props = props
-        self.obj, self.action, self.slot = animated_armature(context, "check")
-        self.fps = armature.scene_fps(context.scene)
-        self.start, self.end = armature.frame_range(self.action)
+        super().__init__(context, props, "check")
         if self.end - self.start < 3:
             raise RetimeAddonError(f"the action {self.action.name!r} has {self.end - self.start + 1} frames; "
                                    "checking needs at least 4")
-        prefs = preferences(bpy.context)
-        self.executable = retime_executable(prefs.retime_path if prefs else "")
-        self.folder, self.keep = exchange_folder(props.exchange_folder, "retime-check-")
-        self.run = None
+        self._program_and_folder("retime-check-")
 
-    def start_check(self, context):
+    @property
+    def doing(self):
+        return f"checking {self.action.name!r}"
+
+    def launch(self, context):
         source = os.path.join(self.folder, "source.bvh")
         export_bvh(context, self.obj, self.action, self.slot, (self.start, self.end), self.fps, source)
         self.report_path = os.path.join(self.folder, "check.json")
         self.run = Run([self.executable, "check", source, "--report", self.report_path], self.folder)
 
     def finish(self, context):
-        """Read the report and show it; returns (physical, the one-line verdict)."""
+        """Read the report and show it; returns the report's type (a warning when not physical) and the
+        one-line verdict."""
         self.run.result(success=(0, 1))  # 1: not physical, the report is written all the same
         try:
             with open(self.report_path) as f:
@@ -73,14 +70,8 @@ class CheckJob:
             raise RetimeAddonError(f"retime check wrote no readable report {self.report_path}: {e}") from None
         length = self.props.force_length or default_force_length(context, self.obj)
         show(context, report, self.start, length, self.action.name)
-        verdict = report.get("verdict") or ("physical as captured" if report["summary"]["physical"] else "NOT physical")
-        return bool(report["summary"]["physical"]), f"{self.action.name!r}: {verdict}"
-
-    def cleanup(self):
-        if self.run is not None:
-            self.run.cancel()
-        if not self.keep:
-            shutil.rmtree(self.folder, ignore_errors=True)
+        said = " ".join(f"Check {self.action.name!r}: {report['verdict']}".split())
+        return {"INFO"} if report["summary"]["physical"] else {"WARNING"}, said
 
 
 def default_force_length(context, obj):
@@ -195,7 +186,7 @@ def show(context, report, start, length, label):
         _key_arrow(_empty(coll, arrow_name(foot), "SINGLE_ARROW", 1.0), frames, points[foot], forces[foot], length)
     _key_arrow(_empty(coll, RESIDUAL_ARROW, "SINGLE_ARROW", 1.0), frames, com,
                to_blender([r["residual_force"] for r in rows]), length)
-    threshold = float(report.get("residual_threshold", 0.25))
+    threshold = float(report["residual_threshold"])
     for i, name in _marker_frames(residual, report["summary"]["worst_frames"], threshold):
         scene.timeline_markers.new(name, frame=int(start + i))
     scene.frame_set(scene.frame_current)
@@ -203,7 +194,7 @@ def show(context, report, start, length, label):
 
 # -- operators ------------------------------------------------------------------------------------------
 
-class RETIME_OT_check(bpy.types.Operator):
+class RETIME_OT_check(BackgroundRunOperator, bpy.types.Operator):
     """Check how physical the active armature's action is as it plays (retime check): the residual force
     as a curve, the worst frames as markers, the feet's contact forces as arrows"""
 
@@ -218,83 +209,8 @@ class RETIME_OT_check(bpy.types.Operator):
         name="Keep Files In", subtype="DIR_PATH",
         description="Keep the BVH and retime's report (check.json) in this folder (empty: a temporary one)")
 
-    _job = None
-    _timer = None
-
-    @classmethod
-    def poll(cls, context):
-        return context.scene is not None
-
-    def execute(self, context):
-        try:
-            job = CheckJob(context, self)
-        except Exception as e:
-            return self._fail(_one_line(e))
-        try:
-            job.start_check(context)
-            while not job.run.done():
-                time.sleep(0.05)
-            physical, said = job.finish(context)
-        except Exception as e:
-            return self._fail(_one_line(e))
-        finally:
-            job.cleanup()
-        return self._done(physical, said)
-
-    def invoke(self, context, event):
-        if context.window is None:
-            return self.execute(context)
-        try:
-            self._job = CheckJob(context, self)
-            self._job.start_check(context)
-        except Exception as e:
-            if self._job is not None:
-                self._job.cleanup()
-            self._job = None
-            return self._fail(_one_line(e))
-        wm = context.window_manager
-        self._timer = wm.event_timer_add(0.2, window=context.window)
-        wm.modal_handler_add(self)
-        self._status(context)
-        return {"RUNNING_MODAL"}
-
-    def modal(self, context, event):
-        if event.type == "ESC":
-            self._end(context)
-            self.report({"WARNING"}, "retime check cancelled; nothing changed")
-            return {"CANCELLED"}
-        if event.type != "TIMER":
-            return {"PASS_THROUGH"}
-        if not self._job.run.done():
-            self._status(context)
-            return {"RUNNING_MODAL"}
-        try:
-            physical, said = self._job.finish(context)
-        except Exception as e:
-            self._end(context)
-            return self._fail(_one_line(e))
-        self._end(context)
-        return self._done(physical, said)
-
-    def _status(self, context):
-        if context.workspace is not None:
-            context.workspace.status_text_set(f"Retime: checking {self._job.action.name!r}, "
-                                              f"{self._job.run.elapsed:.0f} s (Esc cancels)")
-
-    def _end(self, context):
-        if self._timer is not None:
-            context.window_manager.event_timer_remove(self._timer)
-        if context.workspace is not None:
-            context.workspace.status_text_set(None)
-        self._job.cleanup()
-
-    def _done(self, physical, said):
-        self.report({"INFO"} if physical else {"WARNING"}, "Check " + " ".join(said.split()))
-        return {"FINISHED"}
-
-    def _fail(self, message):
-        self.report({"ERROR"}, "Retime check: " + " ".join(message.split()))
-        return {"CANCELLED"}
+    job_type = CheckJob
+    title = "Retime check"
 
 
 class RETIME_OT_clear_check(bpy.types.Operator):

@@ -6,14 +6,12 @@ import os
 import re
 import shutil
 import tempfile
-import time
-import traceback
 
 import bpy
 import numpy as np
 
 from . import apply, armature
-from .runner import RetimeAddonError, Run, retime_executable
+from .runner import BackgroundRunOperator, RetimeAddonError, Run, retime_executable
 
 METHODS = [
     ("linear", "Linear", "Uniform, or piecewise linear through the keytimes"),
@@ -123,15 +121,36 @@ def exchange_folder(given, prefix):
     return folder, True
 
 
-class Job:
+class ArmatureJob:
+    """What a job on the active armature's action starts from: the armature, its action, slot, rate and
+    frames (``start``, ``end``); ``cleanup`` stops ``retime`` and removes a temporary folder."""
+
+    def __init__(self, context, props, verb):
+        self.props = props
+        self.obj, self.action, self.slot = animated_armature(context, verb)
+        self.fps = armature.scene_fps(context.scene)
+        self.start, self.end = armature.frame_range(self.action)
+        self.run = None
+
+    def _program_and_folder(self, prefix):
+        """The ``retime`` program and the folder of its files (``self.executable``, ``self.folder``, ``self.keep``)."""
+        prefs = preferences(bpy.context)
+        self.executable = retime_executable(prefs.retime_path if prefs else "")
+        self.folder, self.keep = exchange_folder(self.props.exchange_folder, prefix)
+
+    def cleanup(self):
+        if self.run is not None:
+            self.run.cancel()
+        if not self.keep:
+            shutil.rmtree(self.folder, ignore_errors=True)
+
+
+class Job(ArmatureJob):
     """One retime of one armature: export, run, apply; all state restored or cleaned on failure."""
 
     def __init__(self, context, props):
-        self.props = props
+        super().__init__(context, props, "retime")
         scene = context.scene
-        self.obj, self.action, self.slot = animated_armature(context, "retime")
-        self.fps = armature.scene_fps(scene)
-        self.start, self.end = armature.frame_range(self.action)
         if self.end - self.start < 1:
             raise RetimeAddonError(f"the action {self.action.name!r} has a single frame: there is no timing to change")
         if props.duration > 0 and props.scale > 0:
@@ -143,18 +162,19 @@ class Job:
             if n_out is not None and not dst * self.fps < n_out - 1:
                 raise RetimeAddonError(f"a keytime marker names output frame {self.start + dst * self.fps:g}, past the "
                                        f"output's last frame {self.start + n_out - 1}")
-        prefs = preferences(bpy.context)
-        self.executable = retime_executable(prefs.retime_path if prefs else "")
         self.reference = None
         if props.method == "guided" and props.reference:
             self.reference = bpy.data.actions.get(props.reference)
             if self.reference is None:
                 raise RetimeAddonError(f"no action named {props.reference!r} for the reference")
-        self.folder, self.keep = exchange_folder(props.exchange_folder, "retime-blender-")
-        self.run = None
+        self._program_and_folder("retime-blender-")
+
+    @property
+    def doing(self):
+        return f"{self.props.method} running on {self.action.name!r}"
 
     # -- the stages ---------------------------------------------------------------------------------
-    def start_retime(self, context):
+    def launch(self, context):
         """Export the action (and the reference) as BVH and start ``retime``."""
         source = os.path.join(self.folder, "source.bvh")
         self.hierarchy = self._export(context, self.action, self.slot, (self.start, self.end), source)
@@ -182,7 +202,7 @@ class Job:
         self.run = Run(argv, self.folder)
 
     def finish(self, context):
-        """Read the warp and apply it; returns the one-line summary."""
+        """Read the warp and apply it; returns the report's type and the one-line summary."""
         said = self.run.result()
         _, source_times = apply.read_warp(os.path.join(self.folder, "warp.csv"))
         frames = np.arange(self.start, self.end + 1, dtype=float)
@@ -212,13 +232,7 @@ class Job:
         if mismatch is not None:
             summary += (f"; timed at the scene's {self.fps:.4g} fps, not the action's source rate {mismatch:.4g} fps "
                         "(the Retime panel offers it)")
-        return summary + (f"; {said}" if said and not said.startswith("wrote ") else "")
-
-    def cleanup(self):
-        if self.run is not None:
-            self.run.cancel()
-        if not self.keep:
-            shutil.rmtree(self.folder, ignore_errors=True)
+        return {"INFO"}, summary + (f"; {said}" if said and not said.startswith("wrote ") else "")
 
     # -- helpers -------------------------------------------------------------------------------------
     def _export(self, context, action, slot, frames, path):
@@ -244,15 +258,7 @@ class Job:
         return out
 
 
-def _one_line(error):
-    """What went wrong, for the report; a bug's traceback goes to the system console only."""
-    if isinstance(error, RetimeAddonError):
-        return str(error)
-    traceback.print_exc()
-    return f"unexpected {type(error).__name__}: {error} (details in the system console; please report it)"
-
-
-class RETIME_OT_retime(bpy.types.Operator):
+class RETIME_OT_retime(BackgroundRunOperator, bpy.types.Operator):
     """Retime the active armature's action with the retime program"""
 
     bl_idname = "retime.retime"
@@ -281,93 +287,7 @@ class RETIME_OT_retime(bpy.types.Operator):
         description="Keep the BVH, retime's output and the timing curve (warp.csv) in this folder, to rerun or "
                     "inspect them (empty: a temporary folder, removed afterwards)")
 
-    _job = None
-    _timer = None
-
-    @classmethod
-    def poll(cls, context):
-        return context.scene is not None
-
-    def execute(self, context):
-        try:
-            job = Job(context, self)
-        except Exception as e:
-            return self._fail(_one_line(e))
-        try:
-            wm = context.window_manager
-            wm.progress_begin(0, 100)
-            wm.progress_update(5)
-            job.start_retime(context)
-            while not job.run.done():
-                wm.progress_update(min(90, 10 + int(job.run.elapsed)))
-                time.sleep(0.05)
-            wm.progress_update(95)
-            summary = job.finish(context)
-        except Exception as e:
-            return self._fail(_one_line(e))
-        finally:
-            context.window_manager.progress_end()
-            job.cleanup()
-        self.report({"INFO"}, summary)
-        return {"FINISHED"}
-
-    def invoke(self, context, event):
-        if context.window is None:
-            return self.execute(context)
-        try:
-            self._job = Job(context, self)
-            self._job.start_retime(context)
-        except Exception as e:
-            if self._job is not None:
-                self._job.cleanup()
-            self._job = None
-            return self._fail(_one_line(e))
-        wm = context.window_manager
-        self._timer = wm.event_timer_add(0.2, window=context.window)
-        wm.progress_begin(0, 100)
-        wm.modal_handler_add(self)
-        self._status(context)
-        return {"RUNNING_MODAL"}
-
-    def modal(self, context, event):
-        job = self._job
-        if event.type == "ESC":
-            self._end(context)
-            self.report({"WARNING"}, "retime cancelled; nothing changed")
-            return {"CANCELLED"}
-        if event.type != "TIMER":
-            return {"PASS_THROUGH"}
-        if not job.run.done():
-            self._status(context)
-            return {"RUNNING_MODAL"}
-        try:
-            summary = job.finish(context)
-        except Exception as e:
-            self._end(context)
-            return self._fail(_one_line(e))
-        self._end(context)
-        self.report({"INFO"}, summary)
-        return {"FINISHED"}
-
-    def _status(self, context):
-        elapsed = self._job.run.elapsed
-        context.window_manager.progress_update(min(90, 10 + int(elapsed)))
-        if context.workspace is not None:
-            context.workspace.status_text_set(f"Retime: {self.method} running on {self._job.action.name!r}, "
-                                              f"{elapsed:.0f} s (Esc cancels)")
-
-    def _end(self, context):
-        wm = context.window_manager
-        if self._timer is not None:
-            wm.event_timer_remove(self._timer)
-        wm.progress_end()
-        if context.workspace is not None:
-            context.workspace.status_text_set(None)
-        self._job.cleanup()
-
-    def _fail(self, message):
-        self.report({"ERROR"}, "Retime: " + " ".join(message.split()))  # one line, whatever retime printed
-        return {"CANCELLED"}
+    job_type = Job
 
 
 class RETIME_OT_use_source_rate(bpy.types.Operator):

@@ -3,6 +3,7 @@ import os
 import shutil
 import subprocess
 import time
+import traceback
 
 
 class RetimeAddonError(Exception):
@@ -74,3 +75,107 @@ class Run:
         errors = [ln for ln in err if ": error: " in ln]
         said = errors[-1] if errors else (err[-1] if err else f"exit code {code}")
         raise RetimeAddonError(said)
+
+
+def one_line(error):
+    """What went wrong, for the report; a bug's traceback goes to the system console only."""
+    if isinstance(error, RetimeAddonError):
+        return str(error)
+    traceback.print_exc()
+    return f"unexpected {type(error).__name__}: {error} (details in the system console; please report it)"
+
+
+class BackgroundRunOperator:
+    """An operator's part that runs a job's ``retime`` to the end (``execute``: scripts) or in the background
+    (``invoke`` from the panel: the status bar shows the job and the seconds, Esc cancels). The job
+    (``job_type(context, operator)``) has ``launch(context)``, ``run`` (a :class:`Run`), ``doing`` (what the
+    status bar says), ``finish(context)`` -> (report type, message) and ``cleanup()``; ``title`` starts the
+    operator's own reports."""
+
+    job_type = None
+    title = "Retime"
+    _job = None
+    _timer = None
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None
+
+    def execute(self, context):
+        try:
+            job = self.job_type(context, self)
+        except Exception as e:
+            return self._fail(one_line(e))
+        try:
+            wm = context.window_manager
+            wm.progress_begin(0, 100)
+            wm.progress_update(5)
+            job.launch(context)
+            while not job.run.done():
+                wm.progress_update(min(90, 10 + int(job.run.elapsed)))
+                time.sleep(0.05)
+            wm.progress_update(95)
+            level, message = job.finish(context)
+        except Exception as e:
+            return self._fail(one_line(e))
+        finally:
+            context.window_manager.progress_end()
+            job.cleanup()
+        self.report(level, message)
+        return {"FINISHED"}
+
+    def invoke(self, context, event):
+        if context.window is None:
+            return self.execute(context)
+        try:
+            self._job = self.job_type(context, self)
+            self._job.launch(context)
+        except Exception as e:
+            if self._job is not None:
+                self._job.cleanup()
+            self._job = None
+            return self._fail(one_line(e))
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.2, window=context.window)
+        wm.progress_begin(0, 100)
+        wm.modal_handler_add(self)
+        self._status(context)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            self._end(context)
+            self.report({"WARNING"}, f"{self.title.lower()} cancelled; nothing changed")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        if not self._job.run.done():
+            self._status(context)
+            return {"RUNNING_MODAL"}
+        try:
+            level, message = self._job.finish(context)
+        except Exception as e:
+            self._end(context)
+            return self._fail(one_line(e))
+        self._end(context)
+        self.report(level, message)
+        return {"FINISHED"}
+
+    def _status(self, context):
+        elapsed = self._job.run.elapsed
+        context.window_manager.progress_update(min(90, 10 + int(elapsed)))
+        if context.workspace is not None:
+            context.workspace.status_text_set(f"Retime: {self._job.doing}, {elapsed:.0f} s (Esc cancels)")
+
+    def _end(self, context):
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        self._job.cleanup()
+
+    def _fail(self, message):
+        self.report({"ERROR"}, f"{self.title}: " + " ".join(message.split()))  # one line, whatever retime printed
+        return {"CANCELLED"}

@@ -4,12 +4,12 @@ The BVH imported with Blender's defaults (the scene at 24 fps, Update Scene FPS 
 stand-in layout that records what it shows, before and after the action's source rate is known; the panel's
 offer taken; an action baked by the add-on. RESULTS.json holds what the panel showed, the rates and the
 baked action's recorded rate."""
-import json
-import os
 import sys
 from types import SimpleNamespace
 
 import bpy
+
+from _addon_script import finish, install_addon
 
 
 class Layout:
@@ -43,10 +43,7 @@ def panel():
 
 
 zip_path, bvh, results_path = sys.argv[1:4]
-bpy.ops.wm.read_factory_settings(use_empty=True)
-bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default", enable_on_install=True)
-module = next(a.module for a in bpy.context.preferences.addons if a.module.endswith(".retime"))
-addon = sys.modules[module]
+addon = sys.modules[install_addon(zip_path)]
 scene = bpy.context.scene
 bpy.ops.import_anim.bvh(filepath=bvh)  # Blender's defaults: the scene stays at 24 fps
 arm = bpy.context.active_object
@@ -61,7 +58,4 @@ arm.animation_data.action = action
 bpy.ops.retime.use_source_rate(fps=120.0)
 out["scene_fps_after"] = scene.render.fps / scene.render.fps_base
 out["matching"] = panel()
-with open(results_path, "w") as f:
-    json.dump(out, f, indent=1)
-sys.stdout.flush()
-os._exit(0)
+finish(out, results_path, indent=1)

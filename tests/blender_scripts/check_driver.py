@@ -5,12 +5,12 @@ RESULTS.json: the operator's status and report, the first frame, the residual cu
 frame, the timeline markers, each check object's world matrix column 3 (an arrow's +Z, its length the
 force) and location on every frame (read back by playing the scene), the force length, what the second
 run and Clear left, and whether the character's action kept every key."""
-import json
 import os
 import sys
 
 import bpy
-import numpy as np
+
+from _addon_script import finish, install_addon
 
 ARROWS = ("Retime Force left", "Retime Force right", "Retime Residual Force")
 POINTS = ("Retime Centre of Mass", "Retime CoM Ground")
@@ -45,9 +45,7 @@ def played(start, end):
 
 
 def main(zip_path, bvh, folder, results_path):
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default", enable_on_install=True)
-    package = next(a.module for a in bpy.context.preferences.addons if a.module.endswith(".retime"))
+    package = install_addon(zip_path)
     bpy.ops.import_anim.bvh(filepath=bvh, update_scene_fps=True, update_scene_duration=True)
     arm = bpy.context.active_object
     action = arm.animation_data.action
@@ -83,11 +81,8 @@ def main(zip_path, bvh, folder, results_path):
     except RuntimeError as e:
         result["no_armature"] = str(e).strip()
     result["registered"] = sorted(bpy.ops.retime.check.get_rna_type().properties.keys())
-    with open(results_path, "w") as f:
-        json.dump(result, f)
+    finish(result, results_path)
 
 
 if __name__ == "__main__":
     main(*sys.argv[1:5])
-    sys.stdout.flush()
-    os._exit(0)

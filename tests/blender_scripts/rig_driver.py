@@ -6,12 +6,13 @@ X (same rest, the controls' own hierarchy), X copying CTRL-X's world transform, 
 the controls, so that only constraints pose the deform bones (Rigify's layout, small). Per case, the deform
 bones' world heads on every output frame go to FOLDER/NAME.npz; RESULTS.json says what the baked actions
 animate."""
-import json
 import os
 import sys
 
 import bpy
 import numpy as np
+
+from _addon_script import finish, install_addon, world_heads
 
 CASES = {"linear_rig": {"method": "linear", "scale": 0.5, "apply": "BAKE"},
          "physics_rig": {"method": "physics", "scale": 0.5, "apply": "BAKE"}}
@@ -44,20 +45,8 @@ def controlled_rig(bvh, fcurves_of):
     return arm, names
 
 
-def heads(arm, names, frames):
-    out = np.empty((len(frames), len(names), 3))
-    for k, f in enumerate(frames):
-        bpy.context.scene.frame_set(int(f))
-        ev = arm.evaluated_get(bpy.context.evaluated_depsgraph_get())
-        for j, n in enumerate(names):
-            out[k, j] = ev.matrix_world @ ev.pose.bones[n].head
-    return out
-
-
 def main(zip_path, bvh, folder, results_path):
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default", enable_on_install=True)
-    package = next(a.module for a in bpy.context.preferences.addons if a.module.endswith(".retime"))
+    package = install_addon(zip_path)
     from importlib import import_module
 
     armature = import_module(package + ".armature")
@@ -77,13 +66,10 @@ def main(zip_path, bvh, folder, results_path):
         start, end = (int(round(f)) for f in baked.frame_range)
         result[name]["animated"] = sorted({fc.data_path.split('"')[1] for fc in armature.action_fcurves(baked)})
         frames = list(range(start, end + 1))
-        np.savez(os.path.join(folder, name + ".npz"), heads=heads(arm, names, frames), names=np.array(names),
+        np.savez(os.path.join(folder, name + ".npz"), heads=world_heads(arm, names, frames), names=np.array(names),
                  frames=np.array(frames))
-    with open(results_path, "w") as f:
-        json.dump(result, f)
+    finish(result, results_path)
 
 
 if __name__ == "__main__":
     main(*sys.argv[1:5])
-    sys.stdout.flush()
-    os._exit(0)

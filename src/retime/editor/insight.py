@@ -17,6 +17,7 @@ def check_payload(motion) -> dict:
     when physics cannot read the clip (not a two-legged character, too short, ...)."""
     from ..physics.check import check_clip
     from ..physics.check_forces import FEET
+    from ..physics.plausibility import OFF_RESIDUAL
 
     try:
         result = check_clip(motion)
@@ -30,7 +31,7 @@ def check_payload(motion) -> dict:
 
     s = result.summary()
     return {"available": True, "physical": s["physical"], "verdict": result.verdict_line(),
-            "worst_frames": s["worst_frames"], "threshold": result.report()["residual_threshold"],
+            "worst_frames": s["worst_frames"], "threshold": OFF_RESIDUAL,
             "residual": np.round(result.residual, 5).tolist(),
             "feet": {foot: {"force": world(forces.foot_force[:, k]), "point": world(forces.foot_point[:, k], metres)}
                      for k, foot in enumerate(FEET)},

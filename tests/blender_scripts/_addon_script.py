@@ -1,0 +1,35 @@
+"""What the scripts that drive the add-on share: a fresh scene with the add-on installed as a user would,
+the bones' world heads as the scene plays, and the ending (results as JSON, then an exit that skips bpy's
+slow teardown)."""
+import json
+import os
+import sys
+
+import bpy
+import numpy as np
+
+
+def install_addon(zip_path):
+    """An empty factory scene with the add-on zip installed and enabled; returns the add-on's module name."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default", enable_on_install=True)
+    return next(a.module for a in bpy.context.preferences.addons if a.module.endswith(".retime"))
+
+
+def world_heads(arm, names, frames):
+    """(frames, bones, 3): the world heads of the bones ``names`` of ``arm`` on each scene frame, as evaluated."""
+    out = np.empty((len(frames), len(names), 3))
+    for k, f in enumerate(frames):
+        bpy.context.scene.frame_set(int(f))
+        ev = arm.evaluated_get(bpy.context.evaluated_depsgraph_get())
+        for j, n in enumerate(names):
+            out[k, j] = ev.matrix_world @ ev.pose.bones[n].head
+    return out
+
+
+def finish(results, results_path, indent=None):
+    """Write ``results`` to ``results_path`` and leave at once."""
+    with open(results_path, "w") as f:
+        json.dump(results, f, indent=indent)
+    sys.stdout.flush()
+    os._exit(0)
