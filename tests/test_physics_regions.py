@@ -211,3 +211,19 @@ def test_regions_of_a_fixed_base_chain_have_no_contact_columns():
         rs = R.compute_regions(pd, R.RegionOptions(workers=1, body_weight=30.0), frames=frames)
         n = 5 if frames is not None else len(pd.times)
         assert rs.lam.shape == (rs.offsets[-1], 0) and len(rs.offsets) == n + 1 and rs.lam0.shape == (n, 0)
+
+
+def _center_lam_in_a_pool_worker(_):
+    return R.compute_regions(ps.rigid_jump(noise=0.01), opts(workers=2)).center_lam
+
+
+def test_a_pool_worker_solves_the_regions_itself():
+    """A caller's multiprocessing.Pool worker is daemonic and may have no children: asked for 2
+    workers it solves the chunks itself (it failed with 'daemonic processes are not allowed to have
+    children'), with the serial answer."""
+    import multiprocessing as mp
+
+    with mp.get_context("fork").Pool(1) as pool:
+        lam = pool.map(_center_lam_in_a_pool_worker, [0])[0]
+    serial = R.compute_regions(ps.rigid_jump(noise=0.01), opts(workers=1)).center_lam
+    assert np.allclose(lam, serial, rtol=1e-6, atol=1e-6)

@@ -266,8 +266,12 @@ CHUNKED_FRAMES = 120  # fewer frames: one chunk, solved here
 def _may_fork() -> bool:
     """A process pool by fork only from the main thread of a process with no other thread: a
     fork from a thread (the editor's solver threads, Dask workers) copies locks held elsewhere and
-    the parent's signal handlers, and its pool could then hang for ever."""
-    return threading.current_thread() is threading.main_thread() and threading.active_count() == 1
+    the parent's signal handlers, and its pool could then hang for ever. Never from a daemonic
+    process (a caller's multiprocessing.Pool worker), which may have no children."""
+    import multiprocessing as mp
+
+    return (threading.current_thread() is threading.main_thread() and threading.active_count() == 1
+            and not mp.current_process().daemon)
 
 
 _WORKER_JOB: RegionJob | None = None  # set only in a forked worker process, once, by _start_worker
