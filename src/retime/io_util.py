@@ -20,13 +20,21 @@ from pathlib import Path
 from .errors import RetimeError
 
 
-def _same_file(a: Path, b: Path) -> bool:
-    if a.resolve() == b.resolve():
-        return True
+def file_keys(path) -> list:
+    """What names the file at ``path`` whichever way it is reached: its resolved path (symlinks) and,
+    when it exists, its device and inode (hard links, bind mounts). Two paths are one file when they
+    share a key; a set of inputs is a dict by these keys."""
+    path = Path(path)
+    keys = [path.resolve()]
     try:
-        return os.path.samefile(a, b)  # hard links, bind mounts
+        st = path.stat()
     except OSError:
-        return False
+        return keys
+    return keys + [(st.st_dev, st.st_ino)]
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    return not set(file_keys(a)).isdisjoint(file_keys(b))
 
 
 def check_not_input(output, *inputs):

@@ -68,12 +68,11 @@ def check_fps(fps: float, what: str = "frame rate") -> float:
 def number_problem(values) -> str | None:
     """What is wrong with a file's numbers ('a value that is not finite ...'), or None."""
     values = np.asarray(values, dtype=float)
+    if numbers_fine(values):
+        return None
     if not np.all(np.isfinite(values)):
         return "a value that is not finite (NaN or inf)"
-    big = np.abs(values) > MAX_VALUE
-    if big.any():
-        return f"the value {values[big][0]:g}, beyond +-{MAX_VALUE:g} (no angle or length is this large)"
-    return None
+    return f"the value {values[np.abs(values) > MAX_VALUE][0]:g}, beyond +-{MAX_VALUE:g} (no angle or length is this large)"
 
 
 def numbers_fine(values) -> bool:

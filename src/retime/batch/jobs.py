@@ -11,6 +11,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path, PurePosixPath
 
 from ..errors import RetimeError
+from ..io_util import file_keys
 from ..motion import READABLE
 from .layout import BATCH_FILES, OUTPUT_SUFFIXES
 
@@ -320,14 +321,6 @@ def files_read(motion: Path) -> list[Path]:
     return files
 
 
-def _file_key(path: Path):
-    try:
-        st = path.stat()
-    except OSError:
-        return None
-    return st.st_dev, st.st_ino
-
-
 def check_inputs_kept(clips: list[Clip], outdir: Path, method: str) -> None:
     """Refuse a batch that would write over one of its inputs: a clip's motion, skeleton or
     reference, or a jobs file, whatever the layout (by path, symlink or hard link). ``outdir``'s
@@ -340,13 +333,12 @@ def check_inputs_kept(clips: list[Clip], outdir: Path, method: str) -> None:
         if clip.jobs_file is not None:
             named.append((clip.jobs_file, "the jobs file"))
         for path, what in named:
-            inputs.setdefault(path.resolve(), (path, what))
-            if (k := _file_key(path)) is not None:
-                inputs.setdefault(k, (path, what))
+            for key in file_keys(path):
+                inputs.setdefault(key, (path, what))
     outputs = [outdir / name for name in BATCH_FILES]
     outputs += [p for clip in clips for p in clip.outputs(outdir, method).values()]
     for output in outputs:
-        hit = inputs.get(output.resolve()) or inputs.get(_file_key(output))
+        hit = next((inputs[key] for key in file_keys(output) if key in inputs), None)
         if hit is not None:
             raise RetimeError(f"{output}: would overwrite {hit[1]} {hit[0]}; choose an output folder apart from the inputs")
 

@@ -147,9 +147,9 @@ def write_index_html(rows: list[dict], curves: list, path: Path, title: str, met
     show_plots = any(plots)
     head = "".join(f"<th>{e(c.replace('_', ' '))}</th>" for c in columns) + ("<th>timing</th>" if timing else "") \
         + ("<th>plot</th>" if show_plots else "")
+    warnings = [row_warning(row, points) for row, points in zip(rows, curves)]
     body = []
-    for row, points, plot in zip(rows, curves, plots):
-        warning = row_warning(row, points)
+    for row, points, plot, warning in zip(rows, curves, plots, warnings):
         cells = []
         for c in columns:
             text, tip = speeds_cell(str(row[c])) if c == "flight_speeds" else (str(row[c]), "")
@@ -164,7 +164,7 @@ def write_index_html(rows: list[dict], curves: list, path: Path, title: str, met
                          if plot else "<td></td>")
         body.append(f'<tr class="{e(row["status"])}{" warn" if warning else ""}">{"".join(cells)}</tr>')
     counts = {s: sum(r["status"] == s for r in rows) for s in ("done", "skipped", "failed")}
-    warned = sum(bool(row_warning(r, points)) for r, points in zip(rows, curves))
+    warned = sum(bool(w) for w in warnings)
     tally = f"{counts['done']} done, {counts['skipped']} skipped, {counts['failed']} failed" \
         + (f", {warned} with a warning" if warned else "")
     page = f"""<!doctype html>

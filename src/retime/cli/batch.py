@@ -13,15 +13,16 @@ EPILOG = """examples:
   retime batch jobs.csv -o out/ --method guided          (header: motion,duration,scale,keytimes,reference,blend)
   retime batch a.bvh b.amc -o out/ --method physics --gravity-scale 0.5 --scheduler tcp://10.0.0.5:8786
 
-Writes OUTDIR/X.bvh, X.csv (warp) and X.json (physics report) per clip, mirroring each input folder,
-with OUTDIR/summary.csv and OUTDIR/index.html. A re-run skips clips whose inputs and options are
-unchanged (OUTDIR/.retime-batch.json); --force recomputes them."""
+Writes OUTDIR/X.bvh, X.csv (warp) and X.json (physics report) per clip, or with --method check X.json
+(check report) and X.png (its plot), mirroring each input folder, with OUTDIR/summary.csv and
+OUTDIR/index.html. A re-run skips clips whose inputs and options are unchanged (OUTDIR/.retime-batch.json);
+--force recomputes them. Inputs are never written over; one batch at a time writes a folder."""
 
 
 def register(sub):
     p = sub.add_parser(
         "batch", help="retime many clips (files, folders, a jobs file) on Dask distributed",
-        description="Run one single-clip command (linear, guided or physics) over many clips in parallel, on an "
+        description="Run one single-clip command (linear, guided, physics or check) over many clips in parallel, on an "
                     "embedded local Dask cluster or a running scheduler. A clip that fails is recorded and the "
                     "batch goes on.",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError
-from ..limits import number_problem, numbers_fine
-from .bvh import read_text
+from ..limits import numbers_fine
+from .bvh import read_numbers, read_text
 from .model import Motion, Skeleton
 from .quat import euler_to_quat, qconj, qmul
 
@@ -103,9 +103,9 @@ def read_asf(path) -> Asf:
                 elif key == "axis":
                     root_axis = _axis_order(path, tokens[1], lineno)
                 elif key == "position":
-                    root_position = _numbers(path, tokens[1:4], 3, lineno, "position")
+                    root_position = read_numbers(path, tokens[1:4], lineno, "position", count=3)
                 elif key == "orientation":
-                    root_orientation = _numbers(path, tokens[1:4], 3, lineno, "orientation")
+                    root_orientation = read_numbers(path, tokens[1:4], lineno, "orientation", count=3)
             elif section == ":bonedata":
                 key = tokens[0].lower()
                 if key == "begin":
@@ -128,16 +128,16 @@ def read_asf(path) -> Asf:
                 elif key == "name":
                     bone.name = tokens[1]
                 elif key == "direction":
-                    bone.direction = _numbers(path, tokens[1:4], 3, lineno, "direction")
+                    bone.direction = read_numbers(path, tokens[1:4], lineno, "direction", count=3)
                     norm = np.linalg.norm(bone.direction)
                     if norm > 0:  # a unit vector, printed to a few digits: make it one again
                         bone.direction = bone.direction / norm
                 elif key == "length":
-                    bone.length = _numbers(path, tokens[1:2], 1, lineno, "length")[0]
+                    bone.length = read_numbers(path, tokens[1:2], lineno, "length", count=1)[0]
                     if bone.length < 0:
                         raise FormatError(path, f"bone length must not be negative, got {tokens[1]}", lineno)
                 elif key == "axis":
-                    bone.axis = _numbers(path, tokens[1:4], 3, lineno, "axis")
+                    bone.axis = read_numbers(path, tokens[1:4], lineno, "axis", count=3)
                     bone.axis_order = _axis_order(path, tokens[4], lineno) if len(tokens) > 4 else "XYZ"
                 elif key == "dof":
                     bone.dof = [t.lower() for t in tokens[1:]]
@@ -166,19 +166,6 @@ def read_asf(path) -> Asf:
         raise FormatError(path, "no :hierarchy section (truncated?)")
     return _build_skeleton(path, bones, hierarchy, length_unit, angle_scale, root_order, root_axis,
                            root_position, root_orientation)
-
-
-def _numbers(path, tokens, count, lineno, what):
-    try:
-        vals = np.array([float(t) for t in tokens])
-    except ValueError:
-        raise FormatError(path, f"{what} holds a value that is not a number", lineno) from None
-    if vals.size != count:
-        raise FormatError(path, f"{what} needs {count} number{'s' if count > 1 else ''}, found {vals.size}", lineno)
-    problem = number_problem(vals)
-    if problem:
-        raise FormatError(path, f"{what} holds {problem}", lineno)
-    return vals
 
 
 def _axis_order(path, token, lineno):
@@ -396,13 +383,7 @@ def _parse_amc_slow(path, body, bounds, dof_count, expected, info):
                     f"{dof_count[name]} dof ({' '.join(info.bones[name].dof) or 'none'})", lineno)
             if name in seen:
                 raise FormatError(path, f"frame {number}: bone {name!r} appears twice", lineno)
-            try:
-                vals = np.array([float(t) for t in tokens[1:]])
-            except ValueError:
-                raise FormatError(path, f"frame {number}: bone {name!r} holds a value that is not a number", lineno) from None
-            problem = number_problem(vals)
-            if problem:
-                raise FormatError(path, f"frame {number}: bone {name!r} holds {problem}", lineno)
+            vals = read_numbers(path, tokens[1:], lineno, f"frame {number}: bone {name!r}")
             if dof_count[name]:
                 out[name][f] = vals
             seen.add(name)

@@ -126,9 +126,7 @@ def _parse_hierarchy_lines(path, lines):
         elif key == "OFFSET":
             if not stack:
                 raise FormatError(path, "OFFSET outside a joint", lineno)
-            vals = _floats(path, tokens[1:4], lineno, "OFFSET")
-            if len(tokens) < 4:
-                raise FormatError(path, f"OFFSET needs 3 numbers, found {len(tokens) - 1}", lineno)
+            vals = read_numbers(path, tokens[1:4], lineno, "OFFSET", count=3)
             if stack[-1] == -2:
                 h.end_sites[-1][1] = vals
             else:
@@ -155,11 +153,15 @@ def _parse_hierarchy_lines(path, lines):
     raise FormatError(path, "file ends before MOTION (truncated?)", lines[-1][0])
 
 
-def _floats(path, tokens, lineno, what):
+def read_numbers(path, tokens, lineno, what, count=None):
+    """A line's numbers (``count`` of them, if given), each finite and within the limits, or the
+    FormatError naming the line (the BVH and ASF/AMC readers' one check)."""
     try:
         vals = np.array([float(t) for t in tokens])
     except ValueError:
         raise FormatError(path, f"{what} holds a value that is not a number", lineno) from None
+    if count is not None and vals.size != count:
+        raise FormatError(path, f"{what} needs {count} number{'s' if count > 1 else ''}, found {vals.size}", lineno)
     problem = number_problem(vals)
     if problem:
         raise FormatError(path, f"{what} holds {problem}", lineno)
@@ -270,7 +272,7 @@ def _parse_frames(path, data_lines, n_channels):
     if values is not None and numbers_fine(values):
         return values
     for f, (lineno, line) in enumerate(data_lines):  # find and name the bad line
-        _floats(path, line.split(), lineno, f"frame {f + 1}")
+        read_numbers(path, line.split(), lineno, f"frame {f + 1}")
     raise FormatError(path, "cannot read the frame values", data_lines[0][0])
 
 
