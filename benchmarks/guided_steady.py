@@ -25,7 +25,6 @@ from pathlib import Path
 import numpy as np
 
 from retime.guided.api import guided_solve
-from retime.guided.method import Settings
 from retime.motion import load_motion
 from retime.phases import flights, longest_flight, interval_speed
 
@@ -82,8 +81,8 @@ def measure(motion, kind, contact_flights, scale, score):
     v = step_speeds(res.curve, motion.fps)
     cut = int(round(len(v) * (1 - MIDDLE) / 2))
     mid = v[cut:len(v) - cut] if len(v) > 2 * cut + 2 else v
-    limit_first = Settings.max_skip / res.upsample[0]
-    limit_last = Settings.max_skip / res.upsample[-1]
+    limit_first = res.s / res.upsample[0]  # the skip limit the solve kept, in the clip's speed
+    limit_last = res.s / res.upsample[-1]
     row = {"score": score, "scale": scale, "cv": float(mid.std() / mid.mean()), "ratio": float(mid.max() / mid.min()),
            "first": float(v[0]), "last": float(v[-1]), "limit_first": limit_first, "limit_last": limit_last,
            "seconds": seconds, "flights": [interval_speed(res.curve, a, b) for a, b in contact_flights]}

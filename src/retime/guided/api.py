@@ -50,10 +50,10 @@ class GuidedResult:
     """What :func:`guided_solve` found."""
 
     curve: TimingCurve  # the smoothed timing curve: output seconds -> source seconds
-    raw_curve: TimingCurve  # the discrete warp itself (piecewise linear through the chosen frames)
-    objective: float  # sum of local scores of the chosen warp (eq. 1)
+    raw_curve: TimingCurve  # the warp before smoothing (piecewise linear through source_times)
+    objective: float  # the chosen warp's objective: the steady one, or eq. 1 for score "paper"
     exact: bool  # globally optimal (False: coarse-to-fine heuristic)
-    frames: np.ndarray  # (m,) grid frame chosen for each output frame
+    frames: np.ndarray  # (m,) grid frame the discrete search chose for each output frame
     output_times: np.ndarray  # (m,) output time of each analysis frame (s)
     source_times: np.ndarray  # (m,) source time shown there before smoothing (s)
     n: int  # grid frames (after upsampling)
@@ -368,9 +368,8 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
     objective = float(sol.objective)
     if score == "steady":
         t0 = time.perf_counter()
-        steady_fixed = [] if free else list(fixed) + [0, len(frames) - 1]
         natural = ups[0] if free else np.append(np.repeat(ups, np.diff(pos)), ups[-1])  # grid frames at 1x
-        warp = steady_warp(F, frames, steady_fixed, steadiness, natural)
+        warp = steady_warp(F, frames, list(fixed), steadiness, natural)  # the keytimes' positions; the ends too
         stats.optimization_s += time.perf_counter() - t0
         stats.extra["discrete_objective"] = objective
         stats.extra["steady_segments_kept"] = warp.kept  # left as the whole-frame warp: no steady warp fits

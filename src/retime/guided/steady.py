@@ -153,37 +153,11 @@ def _fine_band(lb, ub, kmin, kmax):
 
 
 @njit(cache=True)
-def _running_minima(T, rows):
-    """(rows, K) minima of each row of T over its first columns (up to and including each) and over
-    its last ones (from each); NaN entries (never a minimum) are passed over."""
-    K = T.shape[1]
-    first = np.empty((rows, K))
-    last = np.empty((rows, K))
-    for r in range(rows):
-        low = INF
-        for a in range(K):
-            if T[r, a] < low:
-                low = T[r, a]
-            first[r, a] = low
-        low = INF
-        for a in range(K - 1, -1, -1):
-            if T[r, a] < low:
-                low = T[r, a]
-            last[r, a] = low
-    return first, last
-
-
-@njit(cache=True)
 def _segment_dp(D, S, a0, h, lo, hi, kmin, kmax, lam):
     """Exact minimiser over the band of the steady objective for one segment.
 
     Fine position q is grid time a0 + q h; a step of k fine points plays k h grid frames per output
-    frame. Returns (fine positions (m,), objective).
-
-    The best previous step of a state is searched outwards from the same step, and a direction is
-    left once a lower bound of everything beyond (the smallest cost-to-come there plus the smallest
-    change penalty there) exceeds the best so far: every term only grows under rounding, so the
-    minimum and its argument (the smallest step of equals) are those of the full scan over all K steps."""
+    frame. Returns (fine positions (m,), objective)."""
     m = lo.shape[0]
     K = kmax - kmin + 1
     rho = np.empty((K, K))
@@ -193,7 +167,6 @@ def _segment_dp(D, S, a0, h, lo, hi, kmin, kmax, lam):
             x = math.log((kmin + b) / (kmin + a))
             rho[a, b] = lam * (abs(x) + x * x)
             dv[a, b] = abs(b - a) * h  # the change in grid frames per output frame
-    rho_t_first, rho_t_last = _running_minima(rho.T.copy(), K)  # [b, a]: min of rho[a' <= a, b], [a' >= a, b]
     offs = np.zeros(m + 1, dtype=np.int64)
     for p in range(m):
         offs[p + 1] = offs[p] + (hi[p] - lo[p] + 1) * K
@@ -209,7 +182,6 @@ def _segment_dp(D, S, a0, h, lo, hi, kmin, kmax, lam):
         if kmin <= k <= kmax:
             prev[q - lo[1], k - kmin] = _bilinear(D, a0 + 0.5 * (q + lo[0]) * h, k * h)
     for p in range(2, m):
-        row_first, row_last = _running_minima(prev, hi[p - 1] - lo[p - 1] + 1)
         for w in range(hi[p] - lo[p] + 1):
             q = lo[p] + w
             for b in range(K):
@@ -218,22 +190,10 @@ def _segment_dp(D, S, a0, h, lo, hi, kmin, kmax, lam):
                 best = INF
                 arg = -1
                 if lo[p - 1] <= qp <= hi[p - 1]:
-                    r = qp - lo[p - 1]
-                    row = prev[r]
+                    row = prev[qp - lo[p - 1]]
                     sc = _bilinear(S, a0 + qp * h, k * h)  # the triple's middle frame is qp
-                    for a in range(b, -1, -1):  # smaller steps: of equal totals the smallest step wins
-                        change = sc * dv[a, b]
-                        if row_first[r, a] + rho_t_first[b, a] + change > best:
-                            break
-                        v = row[a] + rho[a, b] + change
-                        if v < best or (v == best and v < INF):
-                            best = v
-                            arg = a
-                    for a in range(b + 1, K):  # larger steps: only a smaller total wins
-                        change = sc * dv[a, b]
-                        if row_last[r, a] + rho_t_last[b, a] + change >= best:
-                            break
-                        v = row[a] + rho[a, b] + change
+                    for a in range(K):
+                        v = row[a] + rho[a, b] + sc * dv[a, b]
                         if v < best:
                             best = v
                             arg = a
