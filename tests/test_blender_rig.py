@@ -69,21 +69,25 @@ def test_a_generated_rigify_rig_is_read_and_retimed(rigify):
     own output for that skeleton's BVH."""
     tmp, result, _ = rigify
     assert result["drives_deform"] and result["deform_bones"] == 160
-    assert result["retime"] == ["FINISHED"], result
-    assert result["animated"] and not any(b.startswith("DEF-") for b in result["animated"])  # the controls
     source = np.load(tmp / "source.npz")
     _, names, exported, height = joint_positions_blender(tmp / "rigify_linear" / "source.bvh")
     assert len(names) == result["deform_bones"]  # every DEF bone, in one hierarchy
     error = max_error_over_height(list(names), exported, list(source["names"]), source["heads"], height)
     assert error < TOLERANCE, f"the exported deform skeleton is {error:.2e} of the height off the DEF bones"
-    folder = tmp / "rigify_linear"
-    code, _, err = run_retime("linear", folder / "source.bvh", "--scale", "0.5", "-o", folder / "cli.bvh")
-    assert code == 0, err
-    motion, names, expected, height = joint_positions_blender(folder / "cli.bvh")
-    got = np.load(tmp / "rigify_linear.npz")
-    assert len(got["frames"]) == motion.n_frames == 21
-    error = max_error_over_height(list(names), expected, list(got["names"]), got["heads"], height)
-    assert error < TOLERANCE, f"DEF bones {error:.2e} of the height off retime's output"
+    # at 0.5 every output frame is a source frame; at 0.7 most fall between, where Rigify's IK chains blend
+    # otherwise than retime's interpolation of the deform skeleton: the issue's bound of 1e-3 of the height
+    for name, scale, n_out, tolerance in [("rigify_linear", "0.5", 21, TOLERANCE), ("rigify_between", "0.7", 29, 1e-3)]:
+        case = result[name]
+        assert case["status"] == ["FINISHED"], case
+        assert case["animated"] and not any(b.startswith("DEF-") for b in case["animated"])  # the controls
+        folder = tmp / name
+        code, _, err = run_retime("linear", folder / "source.bvh", "--scale", scale, "-o", folder / "cli.bvh")
+        assert code == 0, err
+        motion, names, expected, height = joint_positions_blender(folder / "cli.bvh")
+        got = np.load(tmp / f"{name}.npz")
+        assert len(got["frames"]) == motion.n_frames == n_out
+        error = max_error_over_height(list(names), expected, list(got["names"]), got["heads"], height)
+        assert error < tolerance, f"{name}: DEF bones {error:.2e} of the height off retime's output"
 
 
 def test_check_runs_on_a_generated_rigify_rig(rigify):

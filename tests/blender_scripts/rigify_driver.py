@@ -3,8 +3,9 @@ controls keyed (the torso crouching and turning, the IK feet shuffling, the ches
 Check and Retime on it. ``python rigify_driver.py ADDON.zip FOLDER RESULTS.json``
 
 Rigify parents its deform (DEF) bones to non-deform ORG bones, so most have no deform ancestor. FOLDER gets
-the DEF bones' world heads on every source frame (source.npz) and on every output frame of a linear bake at
-scale 0.5 (rigify_linear.npz); RESULTS.json says what the operators returned and what the bake animates."""
+the DEF bones' world heads on every source frame (source.npz) and on every output frame of linear bakes at
+scale 0.5 and 0.7 (NAME.npz, NAME in SCALES); RESULTS.json says what the operators returned and what each bake
+animates."""
 import os
 import sys
 
@@ -14,6 +15,7 @@ import numpy as np
 from _addon_script import finish, install_addon, world_heads
 
 FRAMES = (1, 41)
+SCALES = {"rigify_linear": 0.5, "rigify_between": 0.7}  # output frames on source frames; between them
 
 
 def generated_rig():
@@ -62,15 +64,16 @@ def main(zip_path, folder, results_path):
         result["check"] = sorted(bpy.ops.retime.check(exchange_folder=os.path.join(folder, "rigify_check")))
     except RuntimeError as e:  # the keyed motion is no physical one: what matters is that the rig is read
         result["check"] = str(e).strip()
-    armature.assign_action(rig, original, slot)
-    result["retime"] = sorted(bpy.ops.retime.retime(method="linear", scale=0.5, apply="BAKE",
-                                                    exchange_folder=os.path.join(folder, "rigify_linear")))
-    baked = rig.animation_data.action
-    start, end = (int(round(f)) for f in baked.frame_range)
-    result["animated"] = sorted({fc.data_path.split('"')[1] for fc in armature.action_fcurves(baked)})
-    frames = list(range(start, end + 1))
-    np.savez(os.path.join(folder, "rigify_linear.npz"), heads=world_heads(rig, names, frames), names=np.array(names),
-             frames=np.array(frames))
+    for name, scale in SCALES.items():
+        armature.assign_action(rig, original, slot)
+        result[name] = {"status": sorted(bpy.ops.retime.retime(method="linear", scale=scale, apply="BAKE",
+                                                               exchange_folder=os.path.join(folder, name)))}
+        baked = rig.animation_data.action
+        start, end = (int(round(f)) for f in baked.frame_range)
+        result[name]["animated"] = sorted({fc.data_path.split('"')[1] for fc in armature.action_fcurves(baked)})
+        frames = list(range(start, end + 1))
+        np.savez(os.path.join(folder, name + ".npz"), heads=world_heads(rig, names, frames), names=np.array(names),
+                 frames=np.array(frames))
     finish(result, results_path)
 
 
