@@ -12,7 +12,7 @@ import sys
 import bpy
 import numpy as np
 
-from _addon_script import finish, install_addon, world_heads
+from _addon_script import bake_and_record, finish, install_addon, world_heads
 
 FRAMES = (1, 41)
 SCALES = {"rigify_linear": 0.5, "rigify_between": 0.7}  # output frames on source frames; between them
@@ -66,14 +66,7 @@ def main(zip_path, folder, results_path):
         result["check"] = str(e).strip()
     for name, scale in SCALES.items():
         armature.assign_action(rig, original, slot)
-        result[name] = {"status": sorted(bpy.ops.retime.retime(method="linear", scale=scale, apply="BAKE",
-                                                               exchange_folder=os.path.join(folder, name)))}
-        baked = rig.animation_data.action
-        start, end = (int(round(f)) for f in baked.frame_range)
-        result[name]["animated"] = sorted({fc.data_path.split('"')[1] for fc in armature.action_fcurves(baked)})
-        frames = list(range(start, end + 1))
-        np.savez(os.path.join(folder, name + ".npz"), heads=world_heads(rig, names, frames), names=np.array(names),
-                 frames=np.array(frames))
+        result[name] = bake_and_record(rig, armature, names, folder, name, method="linear", scale=scale, apply="BAKE")
     finish(result, results_path)
 
 
