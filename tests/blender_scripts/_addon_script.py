@@ -27,6 +27,19 @@ def world_heads(arm, names, frames):
     return out
 
 
+def bake_and_record(arm, armature, names, folder, name, **op):
+    """Retime the armature's action with ``op`` (a Bake), keeping retime's files in FOLDER/NAME; the world
+    heads of the bones ``names`` on every output frame go to FOLDER/NAME.npz. Returns the operator's status
+    and the bones the baked action animates. ``armature``: the add-on's armature module."""
+    status = sorted(bpy.ops.retime.retime(**op, exchange_folder=os.path.join(folder, name)))
+    baked = arm.animation_data.action
+    start, end = (int(round(f)) for f in baked.frame_range)
+    frames = list(range(start, end + 1))
+    np.savez(os.path.join(folder, name + ".npz"), heads=world_heads(arm, names, frames), names=np.array(names),
+             frames=np.array(frames))
+    return {"status": status, "animated": sorted({fc.data_path.split('"')[1] for fc in armature.action_fcurves(baked)})}
+
+
 def finish(results, results_path, indent=None):
     """Write ``results`` to ``results_path`` and leave at once."""
     with open(results_path, "w") as f:

@@ -10,9 +10,8 @@ import os
 import sys
 
 import bpy
-import numpy as np
 
-from _addon_script import finish, install_addon, world_heads
+from _addon_script import bake_and_record, finish, install_addon
 
 CASES = {"linear_rig": {"method": "linear", "scale": 0.5, "apply": "BAKE"},
          "physics_rig": {"method": "physics", "scale": 0.5, "apply": "BAKE"}}
@@ -61,13 +60,7 @@ def main(zip_path, bvh, folder, results_path):
     result["check"] = sorted(bpy.ops.retime.check(exchange_folder=os.path.join(folder, "rig_check")))
     for name, op in CASES.items():
         armature.assign_action(arm, original, original_slot)
-        result[name] = {"status": sorted(bpy.ops.retime.retime(**op, exchange_folder=os.path.join(folder, name)))}
-        baked = arm.animation_data.action
-        start, end = (int(round(f)) for f in baked.frame_range)
-        result[name]["animated"] = sorted({fc.data_path.split('"')[1] for fc in armature.action_fcurves(baked)})
-        frames = list(range(start, end + 1))
-        np.savez(os.path.join(folder, name + ".npz"), heads=world_heads(arm, names, frames), names=np.array(names),
-                 frames=np.array(frames))
+        result[name] = bake_and_record(arm, armature, names, folder, name, **op)
     finish(result, results_path)
 
 

@@ -34,7 +34,8 @@ class Hierarchy:
 
     def __init__(self, obj, deform_only=False):
         """``deform_only``: the deform bones alone, each under its nearest deform ancestor (a rig whose
-        controls drive the deform skeleton through constraints: Rigify's DEF bones)."""
+        controls drive the deform skeleton through constraints: Rigify's DEF bones); a deform bone with no
+        deform ancestor but the topmost hangs from the deform bone nearest its head (:func:`_adopt`)."""
         keep = (lambda b: b.use_deform) if deform_only else (lambda b: True)
 
         def parent(b):
@@ -53,22 +54,68 @@ class Hierarchy:
         what = "deform bones" if deform_only else "bones"
         if not roots:
             raise ArmatureError(f"armature {obj.name!r} has no {what}")
+        adopted = {}  # bone name -> the deform bone it hangs from by geometry
+        if deform_only and len(roots) > 1:
+            roots, adopted = _adopt(roots, [b for b in obj.data.bones if keep(b)], parent)
         if len(roots) > 1:
             names = ", ".join(repr(b.name) for b in roots[:4]) + (", ..." if len(roots) > 4 else "")
             raise ArmatureError(f"armature {obj.name!r} has {len(roots)} root {what} ({names}); retime needs one "
                                 "hierarchy: parent them to a single root bone")
+        foster = {}
+        for name, p in adopted.items():
+            foster.setdefault(p.name, []).append(obj.data.bones[name])
         order, stack = [], [roots[0]]
+        kids = {}
         while stack:
             bone = stack.pop()
             order.append(bone)
-            stack.extend(reversed(children(bone)))
+            kids[bone.name] = children(bone) + foster.get(bone.name, [])
+            stack.extend(reversed(kids[bone.name]))
         self.names = [b.name for b in order]
         index = {n: i for i, n in enumerate(self.names)}
-        self.parents = np.array([index[parent(b).name] if parent(b) else -1 for b in order], dtype=int)
+        ups = [adopted.get(b.name) or parent(b) for b in order]
+        self.parents = np.array([index[u.name] if u is not None else -1 for u in ups], dtype=int)
         self.bvh_names = _unique([bvh_name(n) for n in self.names])
         self.rest = np.array([np.array(b.matrix_local, dtype=float) for b in order])  # (J, 4, 4) armature space
         self.tails = np.array([np.array(b.tail_local, dtype=float) for b in order])
-        self.leaves = [j for j, b in enumerate(order) if not children(b)]
+        self.leaves = [j for j, b in enumerate(order) if not kids[b.name]]
+
+
+def _adopt(roots, bones, parent):
+    """One tree from several deform roots (Rigify parents its DEF bones to non-deform ORG bones, so the
+    thighs, the shoulders and the face have no deform ancestor): the topmost root (fewest ancestors; the
+    first on a tie) stays the root, and the others, each with its deform subtree, hang from the bone
+    whose rest segment (head to tail) passes nearest their head, the nearest first, so that no loop can
+    form. Returns ([the root], {bone name: the bone it hangs from})."""
+    def depth(b):
+        n = 0
+        while b.parent is not None:
+            b, n = b.parent, n + 1
+        return n
+
+    def root_of(b):
+        while parent(b) is not None:
+            b = parent(b)
+        return b.name
+
+    top = min(roots, key=depth)
+    group = np.array([root_of(b) for b in bones])
+    heads = np.array([b.head_local for b in bones], dtype=float)
+    axis = np.array([b.tail_local for b in bones], dtype=float) - heads
+    length2 = np.maximum((axis * axis).sum(axis=1), 1e-18)
+    waiting = [r for r in roots if r is not top]
+    in_tree = group == top.name
+    adopted = {}
+    while waiting:
+        points = np.array([r.head_local for r in waiting], dtype=float)  # (R, 3)
+        rel = points[:, None] - heads[None, in_tree]  # (R, T, 3)
+        t = np.clip((rel * axis[None, in_tree]).sum(-1) / length2[None, in_tree], 0.0, 1.0)
+        gap = np.linalg.norm(rel - t[..., None] * axis[None, in_tree], axis=-1)
+        r, k = np.unravel_index(int(np.argmin(gap)), gap.shape)
+        orphan = waiting.pop(int(r))
+        adopted[orphan.name] = bones[int(np.flatnonzero(in_tree)[k])]
+        in_tree |= group == orphan.name
+    return [top], adopted
 
 
 def _unique(names):
