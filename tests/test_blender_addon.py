@@ -210,8 +210,8 @@ def test_registered_as_the_issue_asks(played):
     registered = played[1]["_registered"]
     assert registered["panels"] == ["DOPESHEET_EDITOR/UI", "NLA_EDITOR/UI"]
     assert registered["bl_options"] == ["REGISTER", "UNDO"]  # Blender pushes an undo step after each retime
-    assert {"method", "duration", "scale", "apply", "use_markers", "reference", "gravity_scale", "mass"} <= set(
-        registered["properties"])
+    assert {"method", "duration", "scale", "apply", "use_markers", "reference", "blend", "gravity_scale",
+            "mass"} <= set(registered["properties"])
     assert registered["preferences"]
 
 
