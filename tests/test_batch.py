@@ -248,6 +248,11 @@ def test_batch_on_a_running_scheduler_with_physics(tmp_path, good_folder, short_
     assert (single / "s.bvh").read_bytes() == (out / "short.bvh").read_bytes()
     assert (single / "s.csv").read_bytes() == (out / "short.csv").read_bytes()
     assert json.loads((single / "s.json").read_text())["frames"] == json.loads((out / "short.json").read_text())["frames"]
+    # the README: the report is the single command's but for its run times (its regions included)
+    reports = [json.loads(path.read_text()) for path in (single / "s.json", out / "short.json")]
+    for report in reports:
+        del report["summary"]["timings"], report["summary"]["optimizer"]["seconds"]
+    assert reports[0] == reports[1] and reports[0]["regions"]
 
 
 def test_a_worker_killed_mid_batch_costs_only_its_task(tmp_path, short_bvh, scheduler):

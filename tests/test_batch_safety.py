@@ -396,6 +396,24 @@ def test_a_signal_after_the_clips_still_leaves_the_summary(tmp_path, short_bvh, 
     assert signal.getsignal(signal.SIGTERM) == handler  # put back
 
 
+def test_a_signal_before_the_clips_run_is_its_own_exit(tmp_path, short_bvh, monkeypatch):
+    """A SIGTERM while the inputs are read and hashed (before any cluster or clip): exit 143 and one line
+    saying so, where it was taken for a Ctrl-C (130, 'interrupted'); nothing written in OUTDIR."""
+    import retime.batch.run as batch_run
+
+    real = batch_run.clip_hash
+
+    def signalled(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(batch_run, "clip_hash", signalled)
+    out = tmp_path / "out"
+    code, _, err = run(["batch", str(short_bvh), "-o", str(out), "--method", "linear", "--scale", "0.5", "--quiet"])
+    assert code == 143 and one_line_error(err) == "retime batch: terminated while starting; no output written"
+    assert list(out.iterdir()) == []
+
+
 # ------------------------------------------------------------------------------ T4, H1: a scheduler
 def test_a_lost_scheduler_is_one_line_and_rows_that_say_so(tmp_path, short_bvh):
     """H1: waiting on a scheduler with no worker says so; T4: a scheduler that dies mid-batch ends it

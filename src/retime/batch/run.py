@@ -200,6 +200,10 @@ class _Stop:
     def exit_code(self) -> int:
         return 128 + (self.signal or signal.SIGINT)
 
+    @property
+    def how(self) -> str:
+        return "terminated" if self.signal == signal.SIGTERM else "interrupted"
+
 
 @contextlib.contextmanager
 def _quiet_dask_logs():
@@ -243,8 +247,12 @@ def run_batch(clips: list[Clip], outdir: Path, method: str, *, gravity_scale: fl
     except OSError as e:
         raise RetimeError(f"{outdir}: cannot make the output folder ({e.strerror}); choose another -o") from None
     with FolderLock(outdir) as lock, _Stop() as stop, _quiet_dask_logs():
-        return _run_locked(clips, outdir, method, lock, stop, gravity_scale=gravity_scale, scheduler=scheduler,
-                           workers=workers, force=force, quiet=quiet, skipped=skipped)
+        try:
+            return _run_locked(clips, outdir, method, lock, stop, gravity_scale=gravity_scale, scheduler=scheduler,
+                               workers=workers, force=force, quiet=quiet, skipped=skipped)
+        except KeyboardInterrupt:  # reading the inputs or starting the cluster; a later stop leaves a summary
+            print(f"retime batch: {stop.how} while starting; no output written", file=sys.stderr)
+            return stop.exit_code
 
 
 def _run_locked(clips, outdir, method, lock, stop, *, gravity_scale, scheduler, workers, force, quiet, skipped):
@@ -263,13 +271,8 @@ def _run_locked(clips, outdir, method, lock, stop, *, gravity_scale, scheduler, 
     _writable_folders([outputs[i] for i in todo])
 
     client = cluster = None
-    try:
-        if todo:  # before any output file: an unreachable scheduler leaves none behind
-            client, cluster = _connect(scheduler, workers)
-    except KeyboardInterrupt:
-        _close(client, cluster)
-        print("retime batch: interrupted while starting; no output written", file=sys.stderr)
-        return stop.exit_code
+    if todo:  # before any output file: an unreachable scheduler leaves none behind
+        client, cluster = _connect(scheduler, workers)
     lost = None
     try:
         if todo:
@@ -302,8 +305,7 @@ def _run_locked(clips, outdir, method, lock, stop, *, gravity_scale, scheduler, 
     plots = [outputs[i].get("plot") if i < len(outputs) else None for i in order] if method == "check" else None
     write_index_html(rows, curves, outdir / INDEX_NAME, title=f"retime batch: {method}", method=method, plots=plots)
     if stop.signal is not None:
-        how = "interrupted" if stop.signal == signal.SIGINT else "terminated"
-        print(f"retime batch: {how}; finished clips kept (see summary.csv)", file=sys.stderr)
+        print(f"retime batch: {stop.how}; finished clips kept (see summary.csv)", file=sys.stderr)
         return stop.exit_code
     failed = sum(r["status"] == "failed" for r in rows)
     if lost is not None:
