@@ -89,6 +89,7 @@ def _number_type(convert, ok, what, kind="number"):
 positive_float = _number_type(float, lambda v: 0 < v < float("inf"), "a positive number")
 positive_int = _number_type(int, lambda v: v >= 1, "at least 1", kind="whole number")
 nonnegative_float = _number_type(float, lambda v: 0 <= v < float("inf"), "a finite number of at least 0")
+unit_float = _number_type(float, lambda v: 0 <= v <= 1, "a number from 0 to 1")
 
 
 def keytime(text):

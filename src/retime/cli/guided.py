@@ -7,10 +7,7 @@ from ..errors import RetimeError
 from ..method import Request, solve
 from ..motion import load_motion
 from ..warp import apply_timing
-from .common import _number_type, check_found_inputs, frame_kwargs, add_duration_args, add_motion_args, add_output_args, check_output, load_input, nonnegative_float, positive_float, positive_int, write_outputs
-
-
-unit_float = _number_type(float, lambda v: 0 <= v <= 1, "a number from 0 to 1")
+from .common import check_found_inputs, frame_kwargs, add_duration_args, add_motion_args, add_output_args, check_output, load_input, nonnegative_float, positive_float, positive_int, unit_float, write_outputs
 
 
 def register(sub):
