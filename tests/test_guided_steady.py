@@ -184,3 +184,22 @@ def test_editor_offers_blend_as_a_slider():
     assert param.check("0.3") == 0.3
     with pytest.raises(RetimeError, match="outside 0 .. 1"):
         param.check(1.2)
+
+
+def test_front_ends_leave_the_defaults_to_settings():
+    """Settings holds the defaults of score, steadiness and blend: the command line passes only what is
+    given and names Settings' values in its help, the editor's slider starts at Settings.blend."""
+    import argparse
+
+    from retime.cli.main import build_parser
+    from retime.editor.methods import GuidedMethod
+    from retime.guided.api import SCORES
+    from retime.guided.method import Settings
+
+    guided = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices["guided"]
+    options = {a.dest: a for a in guided._actions}
+    assert all(options[name].default is None for name in ("score", "steadiness", "blend"))
+    assert tuple(options["score"].choices) == SCORES and f"{Settings.score} (default" in options["score"].help
+    assert f"default {Settings.steadiness:g}" in options["steadiness"].help
+    param, = [p for p in GuidedMethod.params if p.name == "blend"]
+    assert param.default == Settings.blend == 1.0 and "default" in options["blend"].help

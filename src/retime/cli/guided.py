@@ -50,8 +50,8 @@ def register(sub):
     p.add_argument("--approx", type=nonnegative_float, metavar="EPS",
                    help="approximate nearest neighbours (KD-tree) with relative error EPS, for long references")
     p.add_argument("--score", choices=("steady", "paper"),
-                   help="local score: steady (default; squared distances and sub-frame steps, so a steady motion "
-                        "plays at a steady speed) or paper (Hsu et al.'s eq. 2 on whole grid frames)")
+                   help="local score: steady (default; sub-frame steps and a convex penalty on speed changes, "
+                        "so a steady motion plays at a steady speed) or paper (Hsu et al.'s eq. 2 on whole grid frames)")
     p.add_argument("--steadiness", type=nonnegative_float, metavar="L",
                    help="steady score: weight of the speed-change penalty (default 3; lower keeps short "
                         "flights at their speed, higher plays more evenly)")

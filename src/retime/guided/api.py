@@ -37,7 +37,7 @@ from retime.guided.steady import steady_warp
 from retime.motion import Motion, forward_kinematics
 from retime.warp import TimingCurve, check_keytimes, keytime_warp, scale_warp, snap_duration
 
-#: local scores: "steady" (squared distances, sub-frame steps) and "paper" (Hsu et al. eq. 2)
+#: local scores: "steady" (sub-frame steps, a convex penalty on speed changes) and "paper" (Hsu et al. eq. 2)
 SCORES = ("steady", "paper")
 
 #: above this many DP states the exact solver first runs the heuristic for an upper bound and
@@ -247,8 +247,9 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
     reference, enough for at least 2 per output frame otherwise, 4 for ``free`` with a reference).
     smoothing: moving-average window of the warp, in output frames at the analysis rate (1 = none).
     knn: "exact" or "approx" (KD-tree with relative error ``eps``).
-    score: "steady" (squared distances and sub-frame steps, :mod:`retime.guided.steady`: a steady
-    motion plays at a steady speed) or "paper" (the paper's mean distances on whole grid frames).
+    score: "steady" (the paper's scores on sub-frame steps plus a convex penalty on speed changes,
+    :mod:`retime.guided.steady`: a steady motion plays at a steady speed) or "paper" (the paper's
+    mean distances on whole grid frames).
     steadiness: weight of the steady objective's speed-change penalty.
     blend: the reference's influence, 0 (the keytime spline warp,
     :func:`retime.warp.keytime_warp` with ``smooth``) to 1 (the guided warp); in between the

@@ -153,11 +153,28 @@ def _fine_band(lb, ub, kmin, kmax):
 
 
 @njit(cache=True)
-def _segment_dp(D, S, a0, h, lo, hi, kmin, kmax, lam):
+def _step_tables(D, S, a0, h, n_fine, kmin, kmax):
+    """(n_fine + 1, K) the two scores of a step of kmin + b fine points, by fine position q: ``c``
+    of the step that ends at q, and ``a`` (the price of a change) of the step that starts there.
+    They depend on the position and the step alone, not on the output frame, so the search reads
+    them instead of interpolating them again at every output frame whose band holds q."""
+    K = kmax - kmin + 1
+    cost_into = np.empty((n_fine + 1, K))
+    change_from = np.empty((n_fine + 1, K))
+    for q in range(n_fine + 1):
+        for b in range(K):
+            k = kmin + b
+            cost_into[q, b] = _bilinear(D, a0 + (q - 0.5 * k) * h, k * h)
+            change_from[q, b] = _bilinear(S, a0 + q * h, k * h)  # the triple's middle frame is q
+    return cost_into, change_from
+
+
+@njit(cache=True)
+def _segment_dp(D, cost_into, change_from, a0, h, lo, hi, kmin, kmax, lam):
     """Exact minimiser over the band of the steady objective for one segment.
 
     Fine position q is grid time a0 + q h; a step of k fine points plays k h grid frames per output
-    frame. Returns (fine positions (m,), objective)."""
+    frame; cost_into, change_from: :func:`_step_tables`. Returns (fine positions (m,), objective)."""
     m = lo.shape[0]
     K = kmax - kmin + 1
     rho = np.empty((K, K))
@@ -191,14 +208,14 @@ def _segment_dp(D, S, a0, h, lo, hi, kmin, kmax, lam):
                 arg = -1
                 if lo[p - 1] <= qp <= hi[p - 1]:
                     row = prev[qp - lo[p - 1]]
-                    sc = _bilinear(S, a0 + qp * h, k * h)  # the triple's middle frame is qp
+                    sc = change_from[qp, b]
                     for a in range(K):
                         v = row[a] + rho[a, b] + sc * dv[a, b]
                         if v < best:
                             best = v
                             arg = a
                 if arg >= 0:
-                    best += _bilinear(D, a0 + (q - 0.5 * k) * h, k * h)
+                    best += cost_into[q, b]
                 cur[w, b] = best
                 bp[offs[p] + w * K + b] = arg
         prev, cur = cur, prev
@@ -249,8 +266,9 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
     lb[-1] = M * fine
     lo, hi = _fine_band(lb, ub, kmin, kmax)
     K = kmax - kmin + 1
+    cost_into, change_from = _step_tables(D, S, float(a0), h, M * fine, kmin, kmax)
     if int((hi - lo + 1).max()) * K * K <= FULL_BAND_STATES:
-        q, obj = _segment_dp(D, S, float(a0), h, lo, hi, kmin, kmax, float(lam))
+        q, obj = _segment_dp(D, cost_into, change_from, float(a0), h, lo, hi, kmin, kmax, float(lam))
         return (a0 + q * h, float(obj)) if np.isfinite(obj) else (None, math.inf)
     centre = (np.asarray(y, dtype=float) - a0) / h
     radius = corridor / h
@@ -259,7 +277,7 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
                               np.minimum(hi, np.ceil(centre + radius).astype(np.int64)), kmin, kmax)
         if np.any(blo > bhi):  # the corridor holds no warp with these steps: the whole band
             blo, bhi = lo, hi
-        q, obj = _segment_dp(D, S, float(a0), h, blo, bhi, kmin, kmax, float(lam))
+        q, obj = _segment_dp(D, cost_into, change_from, float(a0), h, blo, bhi, kmin, kmax, float(lam))
         touches = np.any(((q == blo) & (blo > lo)) | ((q == bhi) & (bhi < hi)))
         if not touches or not np.isfinite(obj):
             break
