@@ -395,6 +395,13 @@ def world_frames(motion):
     return pos * motion.skeleton.meters_per_unit, quat_to_matrix(rot)
 
 
+def centre_of_mass(body: Body, R, o) -> np.ndarray:
+    """(n, 3) world centre of mass of ``body`` given its world joint frames R (n, J, 3, 3), o (n, J, 3)."""
+    mass = np.asarray(body.mass, dtype=float)
+    world_com = np.einsum("fjab,jb->fja", R, np.asarray(body.com, dtype=float)) + o
+    return np.einsum("fja,j->fa", world_com, mass) / max(mass.sum(), 1e-12)
+
+
 def stance_frames(frames, fps, foot: int, toe: int, share=0.05) -> np.ndarray:
     """Indices of the frames where a foot looks most planted: the ``share`` (5 %, at least one) with
     the lowest score = ankle height + toe-joint height above their clip minimums + 0.05 s x their
