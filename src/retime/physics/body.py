@@ -272,11 +272,6 @@ def _path_up(parents, start, stop):
     return out
 
 
-def classify_segments(skeleton, feet=None, positions=None) -> dict[int, str]:
-    """de Leva segment of every joint (see the module docstring), from the skeleton's limbs."""
-    return limb_segments(skeleton, feet, positions)[0]
-
-
 def limb_segments(skeleton, feet=None, positions=None) -> tuple[dict[int, str], dict[int, str]]:
     """({joint: de Leva segment}, {joint: side} of the sided ones) from the limbs' geometry: the
     thigh is the bone from the hip to the knee (:func:`~retime.motion.rig.bone_joints` on the world
