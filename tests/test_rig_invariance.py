@@ -354,12 +354,7 @@ def test_a_pelvis_side_bone_named_like_a_hip_is_not_the_thigh(jump, tmp_path):
 
 def _turned_up(motion, variant_up):
     """The up axis a file has after V.turn_up(motion, variant_up), from the file's own up."""
-    from retime.motion.frame import up_vector
-    from retime.motion.variants import _TURNS
-
-    v = _TURNS[variant_up] @ up_vector(motion.skeleton.up)
-    k = int(np.argmax(np.abs(v)))
-    return ("+" if v[k] > 0 else "-") + "xyz"[k]
+    return V.turned_up(motion.skeleton.up, variant_up)
 
 
 FLOOR_VARIANTS = {"as written": lambda m: m, "z-up": lambda m: V.turn_up(m, "+z"), "x-up": lambda m: V.turn_up(m, "+x"),
