@@ -86,9 +86,6 @@ class FootPoints:
     height: np.ndarray  # (F, 10): above the point's own floor
     velocity: np.ndarray  # (F, 10, 3) m/s
 
-    LEFT = [0, 1, 2, 3, 8]
-    RIGHT = [4, 5, 6, 7, 9]
-
     @property
     def bears(self) -> np.ndarray:
         """(F, 10) bool: the point bears on the floor: within :data:`CLEAR_M` of it, or within
