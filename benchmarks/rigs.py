@@ -31,7 +31,6 @@ import numpy as np
 from retime.errors import RetimeError
 from retime.motion import load_motion, save_bvh
 from retime.motion import variants as V
-from retime.motion.frame import up_vector
 from retime.physics.api import physics_warp
 
 DEV = Path(__file__).resolve().parents[2] / "shared" / "data" / "bvh-dev"
@@ -72,12 +71,6 @@ VARIANTS = {"z-up": lambda m: V.turn_up(m, "+z"), "x-up": lambda m: V.turn_up(m,
 TURNS = {"z-up": "+z", "x-up": "+x", "-z-up": "-z"}
 
 
-def _turned(up, turn):
-    v = V._TURNS[turn] @ up_vector(up)
-    k = int(np.argmax(np.abs(v)))
-    return ("+" if v[k] > 0 else "-") + "xyz"[k]
-
-
 def frame_rows(path: Path) -> list[str]:
     """Detected up and units of the file and of each variant (see the module docstring)."""
     try:
@@ -94,7 +87,7 @@ def frame_rows(path: Path) -> list[str]:
             v = load_motion(out)
             h = v.skeleton.frame
             factor = m.skeleton.meters_per_unit / 0.001 if name == "mm" else 1.0
-            kept = (v.skeleton.up == (_turned(m.skeleton.up, TURNS[name]) if name in TURNS else m.skeleton.up)
+            kept = (v.skeleton.up == (V.turned_up(m.skeleton.up, TURNS[name]) if name in TURNS else m.skeleton.up)
                     and abs(v.skeleton.meters_per_unit * factor / m.skeleton.meters_per_unit - 1) < 1e-3)
             rows.append(f"{'':28s} {name:>10s} {h.up:>3s} {h.up_confidence:5.0%} {h.unit[:10]:>10s} "
                         f"{v.skeleton.meters_per_unit:9.4g}  {'kept' if kept else 'CHANGED'}")

@@ -42,12 +42,13 @@ for _s, _side in (("l", "Left"), ("r", "Right")):
                 f"{_s}thumb": f"{_side}HandThumb1"})
 
 
-def kneeling_bow(seconds=6.0, fps=60.0) -> Motion:
+def kneeling_bow(seconds=6.0, fps=60.0, least=0.0) -> Motion:
     """The 31-joint CMU-layout figure kneeling (knees, shins and insteps on the floor) and bowing
     deeply twice, sitting back towards its heels as it bows (so its weight stays over the knees);
-    deep in the bow for most of the clip."""
+    deep in the bow for most of the clip, and never less than ``least`` (1: deepest throughout)."""
     t = np.arange(int(seconds * fps)) / fps
     bow = np.clip(3.0 * np.sin(np.pi * t / (seconds / 2)) ** 2, 0, 1)  # 0 upright .. 1 deepest, twice
+    bow = least + (1.0 - least) * bow
     idx = {n: k for k, n in enumerate(NAMES)}
     sit_back = 0.3 * bow  # hips move back over the heels
     thigh = 0.42 + 0.05

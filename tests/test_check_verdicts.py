@@ -144,3 +144,11 @@ def test_a_treadmill_run_is_named_a_treadmill():
 def test_a_cartwheel_is_held_up_not_a_wrong_rate():
     c = check_clip(_dev("bvh-dev/cart.bvh"))
     assert c.verdict.codes == ["held_up"]
+
+
+@pytest.mark.parametrize("name", ["cmu/16_01.amc", "cmu/16_31.amc", "cmu/16_33.amc"])
+def test_a_locked_root_is_named_not_a_wrong_up_axis(name):
+    # pinned, this jump and these walks were read +z / -x up (a swinging hand at its turning points
+    # rests on a 'wall') and the check said up_axis
+    c = check_clip(M.root_locked(_dev(name)))
+    assert not c.physical and c.verdict.codes == ["root_locked"]

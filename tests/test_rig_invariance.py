@@ -354,12 +354,7 @@ def test_a_pelvis_side_bone_named_like_a_hip_is_not_the_thigh(jump, tmp_path):
 
 def _turned_up(motion, variant_up):
     """The up axis a file has after V.turn_up(motion, variant_up), from the file's own up."""
-    from retime.motion.frame import up_vector
-    from retime.motion.variants import _TURNS
-
-    v = _TURNS[variant_up] @ up_vector(motion.skeleton.up)
-    k = int(np.argmax(np.abs(v)))
-    return ("+" if v[k] > 0 else "-") + "xyz"[k]
+    return V.turned_up(motion.skeleton.up, variant_up)
 
 
 FLOOR_VARIANTS = {"as written": lambda m: m, "z-up": lambda m: V.turn_up(m, "+z"), "x-up": lambda m: V.turn_up(m, "+x"),
@@ -400,6 +395,33 @@ def test_a_kneeling_bow_is_read_y_up_in_inches(kneeling, tmp_path):
         _assert_frame_kept(kneeling, name, tmp_path)
     for factor in (UNITS["in"] / UNITS["cm"], UNITS["in"] / UNITS["mm"]):
         _assert_frame_kept(kneeling, "z-up", tmp_path, factor)
+
+
+def test_a_bow_deep_throughout_is_read_y_up(tmp_path):
+    """Bowed so deep throughout that the head is ahead of the feet in every frame, with nothing at
+    rest on a floor along that axis: the head-above-feet axis stood (+x, as the issue's kneeling
+    clip was read), taken for a root-locked body that hangs. Its knees, shins and insteps rest on the
+    floor in every frame: +y, inches, under every turn and dummy root."""
+    from floor_poses import kneeling_bow
+
+    m = _written(V.rescale(kneeling_bow(least=1.0), 1 / UNITS["in"]), tmp_path, "deep")
+    assert m.skeleton.up == "+y" and m.skeleton.frame.unit == "in"
+    for name in FLOOR_VARIANTS:
+        _assert_frame_kept(m, name, tmp_path)
+
+
+@pytest.mark.parametrize("name", ["16_15.amc", "16_01.amc", "16_31.amc", "16_33.amc"])
+def test_a_root_locked_clip_keeps_its_up_axis(name):
+    """Pinned at the root, a body hangs and nothing rests on the floor under its feet, while a
+    swinging hand rests at its turning points on a 'wall' (16_01 read +z, 16_31 and 16_33 -x, in
+    33-51 % of their frames): the head, above the feet in every frame, keeps +y."""
+    from retime.motion import mistakes as M
+
+    path = bundled_path(name) if name == "16_15.amc" else DEV.parent / "cmu" / name
+    if not path.exists():
+        pytest.skip(f"{path} is absent")
+    m = M.root_locked(load_motion(path))
+    assert m.skeleton.up == "+y" and m.skeleton.frame.up_confidence > 0.95
 
 
 @pytest.fixture(scope="module")

@@ -141,6 +141,11 @@ REST_JOINTS = 8  # a frame at rest counts its resting joints up to this many
 FLAT_FLOOR = 0.1  # of the body's size: the lowest point stays this close to one level (P5 to P80 of frames)
 MIN_REST = 0.25  # share of frames at rest an axis needs to overrule the head-above-feet axis ...
 OVERRULE = 2.0  # ... and this many times its score
+HEAD_ABOVE_ALWAYS = 0.95  # a head above the feet in this share of frames ...
+MIN_REST_SURE = 0.75  # ... is overruled only by an axis at rest in this share: a body resting on a
+# floor rests in nearly every frame (a kneeling bow, an elephant, a body lying down: 100 %), while a
+# root-locked export hangs and its swinging hand rests on a 'wall' at its turning points (CMU walks
+# and a jump, locked: 33-54 %)
 FOUR_LIMB_SHARE = 0.5
 
 
@@ -189,15 +194,13 @@ def rest_on(positions, parents, fps, up: str) -> Rest:
     return Rest(on, balanced, (float(np.percentile(lowest, 80)) - floor) / size)
 
 
-HEAD_ABOVE_ALWAYS = 0.95  # share of frames with the head above the feet
-
-
 def up_from_contacts(positions, parents, fps, prior: str | None = None, head_lift=None,
                      prior_confidence: float = 0.0) -> tuple[str, float]:
     """The signed axis along which the body rests on the floor best (see the module docstring), and
     its confidence: the share of frames at rest on it, or ``prior_confidence`` (the share of frames
     whose head is above the feet) when ``prior`` stands. ``prior`` (the head-above-feet axis) stands unless another
-    axis is at rest in :data:`MIN_REST` of the frames and scores :data:`OVERRULE` times as much (a
+    axis is at rest in :data:`MIN_REST` of the frames (:data:`MIN_REST_SURE` when the head is above
+    the feet in :data:`HEAD_ABOVE_ALWAYS` of them) and scores :data:`OVERRULE` times as much (a
     clip at rest throughout, against a wall or on a floor, looks alike). The sign of a new axis is
     the side the head is on (``head_lift``, the median head-minus-feet vector), when it is clear;
     an upside-down reading is never taken from the contacts alone (a still head rests like a foot)."""
@@ -213,12 +216,9 @@ def up_from_contacts(positions, parents, fps, prior: str | None = None, head_lif
         k = AXES[up[1]]
         return ("+" if lift[k] > 0 else "-") + up[1] if abs(lift[k]) > BALANCE_MARGIN * size else up
 
-    if scores[prior] == 0 and prior_confidence >= HEAD_ABOVE_ALWAYS:
-        # nothing rests on any floor under a head that is always above the feet: the body hangs (a
-        # root-locked export), and a still torso would rest against a 'wall' on another axis
-        return prior, float(prior_confidence)
+    need = MIN_REST_SURE if prior_confidence >= HEAD_ABOVE_ALWAYS else MIN_REST
     floors = {signed(up) for up in rests if up[1] != prior[1] and scores[up] > 0
-              and scores[up] >= OVERRULE * scores[prior] and rests[up].balanced.mean() >= MIN_REST}
+              and scores[up] >= OVERRULE * scores[prior] and rests[up].balanced.mean() >= need}
     if not floors:
         return prior, float(prior_confidence)
     # floors alike (a body at rest lies on its side as well as it stands): the one the head is highest above

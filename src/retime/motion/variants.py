@@ -44,6 +44,16 @@ def turn_up(motion: Motion, up: str = "+z") -> Motion:
     return motion.replace(rotations=rot, translations=tr)
 
 
+def turned_up(up: str, turn: str) -> str:
+    """The up axis of a file whose up is ``up`` after :func:`turn_up` with ``turn`` (which turns +y
+    to ``turn``): the signed axis the turn takes ``up`` to."""
+    from .frame import up_vector
+
+    v = _TURNS[turn] @ up_vector(up)
+    k = int(np.argmax(np.abs(v)))
+    return ("+" if v[k] > 0 else "-") + "xyz"[k]
+
+
 def rescale(motion: Motion, factor: float) -> Motion:
     """Every length times ``factor`` (a cm file as mm: 10)."""
     sk = motion.skeleton

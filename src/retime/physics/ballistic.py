@@ -21,7 +21,7 @@ import numpy as np
 
 from ..phases import runs
 from .constants import G
-from .contacts import corner_positions, local_floor
+from .contacts import above_own_floor, corner_positions
 
 CLEAR_M = 0.03  # a foot point this close to its floor bears on it ...
 NEAR_M = 0.05  # ... and one this close that is nearly still (a foot rolling onto its tip)
@@ -86,9 +86,6 @@ class FootPoints:
     height: np.ndarray  # (F, 10): above the point's own floor
     velocity: np.ndarray  # (F, 10, 3) m/s
 
-    LEFT = [0, 1, 2, 3, 8]
-    RIGHT = [4, 5, 6, 7, 9]
-
     @property
     def bears(self) -> np.ndarray:
         """(F, 10) bool: the point bears on the floor: within :data:`CLEAR_M` of it, or within
@@ -105,23 +102,19 @@ class FootPoints:
 
 def foot_points(motion, body) -> FootPoints:
     """The :class:`FootPoints` of ``motion`` (y up, as physics sees it) with ``body``'s masses and
-    soles. A point's floor is the local floor (:func:`.contacts.local_floor`) plus where that point
-    stands (its 5th percentile, at most 3 cm above the lowest point's, as contact detection takes it)."""
-    from .body import bone_ends, world_frames
+    soles. Heights are above each point's own floor, as contact detection takes them
+    (:func:`.contacts.above_own_floor`)."""
+    from .body import bone_ends, centre_of_mass, world_frames
     from .contacts import _feet_in_order
 
     pos, R = world_frames(motion)
-    mass = np.asarray(body.mass, dtype=float)
-    world_com = np.einsum("fjab,jb->fja", R, np.asarray(body.com, dtype=float)) + pos
-    com = np.einsum("fja,j->fa", world_com, mass) / max(mass.sum(), 1e-12)
+    com = centre_of_mass(body, R, pos)
     corners = corner_positions(body, motion.skeleton, R, pos)  # (F, 8, 3): 4 per foot, left first
     ends = bone_ends(motion.skeleton)
     tips = [motion.skeleton.index(f.toe_joint) for f in _feet_in_order(body)]
     tip = np.stack([pos[:, j] + np.einsum("fab,b->fa", R[:, j], ends[j]) for j in tips], axis=1)  # (F, 2, 3)
     points = np.concatenate([corners, tip], axis=1)  # (F, 10, 3)
-    height = points[..., 1] - local_floor(points[..., 1], motion.fps)[:, None]
-    floors = np.percentile(height, 5, axis=0)
-    height = height - np.minimum(floors, floors.min() + 0.03)
+    height = above_own_floor(points[..., 1], motion.fps)
     velocity = np.gradient(points, axis=0) * motion.fps if len(points) > 1 else np.zeros(points.shape)
     return FootPoints(com, height, velocity)
 

@@ -272,11 +272,6 @@ def _path_up(parents, start, stop):
     return out
 
 
-def classify_segments(skeleton, feet=None, positions=None) -> dict[int, str]:
-    """de Leva segment of every joint (see the module docstring), from the skeleton's limbs."""
-    return limb_segments(skeleton, feet, positions)[0]
-
-
 def limb_segments(skeleton, feet=None, positions=None) -> tuple[dict[int, str], dict[int, str]]:
     """({joint: de Leva segment}, {joint: side} of the sided ones) from the limbs' geometry: the
     thigh is the bone from the hip to the knee (:func:`~retime.motion.rig.bone_joints` on the world
@@ -393,6 +388,13 @@ def world_frames(motion):
 
     pos, rot = forward_kinematics(motion)
     return pos * motion.skeleton.meters_per_unit, quat_to_matrix(rot)
+
+
+def centre_of_mass(body: Body, R, o) -> np.ndarray:
+    """(n, 3) world centre of mass of ``body`` given its world joint frames R (n, J, 3, 3), o (n, J, 3)."""
+    mass = np.asarray(body.mass, dtype=float)
+    world_com = np.einsum("fjab,jb->fja", R, np.asarray(body.com, dtype=float)) + o
+    return np.einsum("fja,j->fa", world_com, mass) / max(mass.sum(), 1e-12)
 
 
 def stance_frames(frames, fps, foot: int, toe: int, share=0.05) -> np.ndarray:

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .check_forces import FrameForces, frame_forces
-from .plausibility import OFF_RESIDUAL, SourceCheck, check_source, sole_point_velocity
+from .plausibility import OFF_RESIDUAL, SourceCheck, check_source
 
 
 @dataclass
@@ -55,15 +55,20 @@ class ClipCheck:
         f = self.verdict.flight
         return np.zeros(len(self.times), bool) if f is None or f.airborne is None else f.airborne
 
+    @property
+    def judged(self) -> np.ndarray:
+        """(F,) bool: the frames the verdict judged by their residual (all but those near a flight
+        that falls at g)."""
+        judged = self.verdict.judged
+        return judged if judged is not None and len(judged) == len(self.residual) else np.ones(len(self.residual), bool)
+
     def worst_frames(self, k: int = 5, apart: float = 0.1) -> list[int]:
         """Up to ``k`` frames of the largest residual over a quarter body weight, ``apart`` seconds
         from each other (distinct moments, not one landing's neighbouring frames), among the frames
         the verdict judged by their residual (not those next to a flight that falls at g)."""
         out = []
         gap = max(1, int(round(apart * self.fps)))
-        judged = self.verdict.judged
-        residual = self.residual if judged is None or len(judged) != len(self.residual) else \
-            np.where(judged, self.residual, 0.0)
+        residual = np.where(self.judged, self.residual, 0.0)
         for i in np.argsort(-residual, kind="stable"):
             if residual[i] <= OFF_RESIDUAL or len(out) == k:
                 break
@@ -73,6 +78,7 @@ class ClipCheck:
 
     def summary(self) -> dict:
         slide = self.foot_slide[~self.flight]
+        verdict = self.verdict.as_dict()
         return {
             "physical": self.physical,
             "frames": int(len(self.times)),
@@ -82,7 +88,7 @@ class ClipCheck:
             "max_torque_excess": round(float(self.torque_excess.max()), 3) if len(self.times) else 0.0,
             "flight_share": round(float(self.flight.mean()), 4),
             "flight_g": None if self.flight_g is None else round(self.flight_g, 3),
-            "flights": self.verdict.as_dict()["flights"], "time_factor": self.verdict.as_dict()["time_factor"],
+            "flights": verdict["flights"], "time_factor": verdict["time_factor"],
             "median_foot_slide": round(float(np.median(slide)), 4) if slide.size else 0.0,
             "worst_frames": self.worst_frames(),
             "codes": self.verdict.codes,
@@ -107,8 +113,7 @@ class ClipCheck:
         s = self.summary()
         share = self.verdict.judged_share
         which = "frames" if share == 1.0 else f"the {share:.0%} of frames away from flights"
-        judged = self.verdict.judged
-        top = self.residual[judged] if judged is not None and len(judged) == len(self.residual) else self.residual
+        top = self.residual[self.judged]
         numbers = (f"{s['off_share']:.0%} of {which} over {OFF_RESIDUAL:.0%} body weight of residual "
                    f"(median {s['median_residual']:.2f}, max {float(top.max()) if top.size else 0.0:.2f})")
         if s["flight_g"] is not None:
@@ -126,6 +131,16 @@ def _com_accel(terms) -> np.ndarray:
         return np.zeros_like(c)
     dt = 1.0 / float(terms.fps)
     return np.gradient(np.gradient(c, dt, axis=0), dt, axis=0)
+
+
+def sole_point_velocity(terms) -> np.ndarray:
+    """(F, 4, 2) horizontal velocity (m/s, x and z) of each contact point (the midpoint of its two
+    sole corners) at the motion's frames."""
+    corners = np.asarray(terms.corners)[::int(terms.samples_per_frame)]
+    mid = 0.5 * (corners[:, 0::2] + corners[:, 1::2])
+    if len(mid) < 2:
+        return np.zeros(mid.shape[:2] + (2,))
+    return np.gradient(mid[..., [0, 2]], axis=0) * float(terms.fps)
 
 
 def _foot_slide(terms) -> np.ndarray:

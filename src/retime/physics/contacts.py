@@ -161,10 +161,17 @@ def point_tracks(motion, body, frames=None):
     low = np.minimum(x[:, 0::2, 1], x[:, 1::2, 1])  # (F, 4)
     mid = 0.5 * (x[:, 0::2] + x[:, 1::2])
     speed = np.linalg.norm(np.gradient(mid, axis=0), axis=-1) * motion.fps
-    low = low - local_floor(low, motion.fps)[:, None]
+    return above_own_floor(low, motion.fps), speed
+
+
+def above_own_floor(low, fps):
+    """(F, P) height of each point above its own floor, from its height ``low`` (F, P): above the
+    local floor (:func:`local_floor`), less where the point stands (its 5th percentile, at most 3 cm
+    above the lowest point's: a point that never touches the ground is not made to)."""
+    low = low - local_floor(low, fps)[:, None]
     floors = np.percentile(low, 5, axis=0)
     floors = np.minimum(floors, floors.min() + 0.03)
-    return low - floors, speed
+    return low - floors
 
 
 LOCAL_FLOOR_S = 0.75  # half width of the window the floor is the lowest point of

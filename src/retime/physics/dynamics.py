@@ -50,7 +50,7 @@ from scipy.ndimage import uniform_filter1d
 
 from ..errors import RetimeError
 from ..limits import check_memory
-from .body import Body, load_body, skeleton_tree
+from .body import Body, centre_of_mass, load_body, skeleton_tree
 from .constants import DEFAULT_SMOOTHING, STANDARD_GRAVITY, G
 from .contact_basis import ComputedContactBasis, ContactBasis, as_contact_basis
 from .contacts import (CONTACT_POINTS, EDGES_PER_CORNER, at_samples, compact_contact_basis, corner_jacobians,
@@ -568,14 +568,11 @@ def body_points(terms: DynamicsTerms, path: PathSamples):
     mass (n, 3), in world coordinates."""
     n = len(terms.times)
     corners, root, com = np.empty((n, 8, 3)), np.empty((n, 3)), np.empty((n, 3))
-    mass = np.asarray(terms.body.mass, dtype=float)
-    local_com = np.asarray(terms.body.com, dtype=float)
     for part in terms.chunks():
         kin = terms.kinematics(path, part)
         corners[part] = corner_positions(terms.body, terms.skeleton, kin.R, kin.o)
         root[part] = kin.o[:, 0]
-        world_com = np.einsum("fjab,jb->fja", kin.R, local_com) + kin.o
-        com[part] = np.einsum("fja,j->fa", world_com, mass) / max(mass.sum(), 1e-12)
+        com[part] = centre_of_mass(terms.body, kin.R, kin.o)
     return corners, root, com
 
 

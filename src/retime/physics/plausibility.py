@@ -47,6 +47,7 @@ HELD_G = 0.2  # flights falling slower than this are held up, not slowed down (a
 TREADMILL_TRAVEL = 0.3  # the root travelling less than this share of the feet's floor speed: a treadmill
 TRAVEL_WINDOW_S = 1.0  # the root's travel is measured over this, so a stance's sway does not count
 BODY_HEIGHT_M = (1.0, 2.3)  # a body outside this (metres) may be read in the wrong unit
+KNOWN_UNIT = ("sure", "declared", "given")  # unit confidences at which the length unit is not doubted
 COMMON_RATES = (24, 25, 30, 48, 50, 60, 90, 100, 120, 240)  # fps a fitted rate is snapped to ...
 UNIT_SNAP = 0.05  # a guessed unit this close to a common one that gives 1 g flights is that one
 RATE_SNAP = 0.1  # ... when this close (relative; flights measure a clip's rate to about 8 %)
@@ -116,15 +117,6 @@ class SourceCheck:
                 "time_factor": None if f is None or f.time_factor is None else round(f.time_factor, 4),
                 "root_travel": round(self.travel, 4), "floor_slide": round(self.slide, 4), "judged_share": round(self.judged_share, 4)}
 
-def sole_point_velocity(terms) -> np.ndarray:
-    """(F, 4, 2) horizontal velocity (m/s, x and z) of each contact point (the midpoint of its two
-    sole corners) at the motion's frames."""
-    corners = np.asarray(terms.corners)[::int(terms.samples_per_frame)]
-    mid = 0.5 * (corners[:, 0::2] + corners[:, 1::2])
-    if len(mid) < 2:
-        return np.zeros(mid.shape[:2] + (2,))
-    return np.gradient(mid[..., [0, 2]], axis=0) * float(terms.fps)
-
 
 def floor_slide(points: FootPoints) -> tuple[float, float]:
     """(median horizontal speed m/s, steadiness 0-1) of the foot points while they bear on the
@@ -172,7 +164,7 @@ def _unit_that_fits(flight: FlightGravity, frame) -> str | None:
     (an unusual scale) and one is within :data:`UNIT_SNAP`: a scale is as likely wrong as a rate."""
     from ..motion.frame import UNITS
 
-    if frame is None or frame.unit_confidence in ("sure", "declared", "given"):
+    if frame is None or frame.unit_confidence in KNOWN_UNIT:
         return None
     fit = frame.meters_per_unit / flight.ratio
     name, mpu = min(UNITS.items(), key=lambda u: abs(np.log(u[1] / fit)))
@@ -206,6 +198,71 @@ def _near(mask, frames: int) -> np.ndarray:
     return binary_dilation(mask, iterations=frames) if frames > 0 and mask.any() else mask
 
 
+def _up_axis_cause(motion, frame, off_all: float, med_all: float) -> Cause | None:
+    """About one body weight of residual on nearly every frame, with the up axis read unsurely (or
+    given): the up axis is wrong."""
+    up_given = frame is not None and frame.up_given
+    if not (med_all > 0.6 and off_all > 0.8 and (frame is None or frame.up_confidence < 0.9 or up_given)):
+        return None
+    conf = (", as given" if up_given else f", {frame.up_confidence:.0%} of frames agree") if frame is not None else ""
+    return Cause("up_axis", f"the up axis is wrong (read as {motion.skeleton.up if frame is None else frame.up}"
+                            f"{conf}; give --up)")
+
+
+def _pose_cause(frozen: bool, still: bool) -> Cause | None:
+    """A pose that never changes while the root moves (radians), or a root that never moves (locked)."""
+    if frozen and not still:
+        return Cause("radians", f"the pose barely changes (every joint within {FROZEN_DEG:g} deg of its rest "
+                                "pose) while the root moves: rotations written in radians but read as degrees? give --angles rad")
+    if still and not frozen:
+        return Cause("root_locked", "the root never moves: an in-place (root-locked) export, which has no "
+                                    "travel or balance to keep; physics needs the character's own root motion")
+    return None
+
+
+def _floor_cause(slide: float, steady: float, travel: float) -> Cause | None:
+    """Feet that move at floor height (:func:`floor_slide`): a treadmill when the root goes nowhere
+    meanwhile (:func:`root_travel`), else sliding feet."""
+    if slide <= SLIDE_SPEED:
+        return None
+    if travel < TREADMILL_TRAVEL * slide:
+        how = "steadily one way" if steady > 0.5 else "back and forth"
+        return Cause("treadmill", f"a treadmill or an in-place loop: the feet move while at floor height "
+                                  f"(median {slide:.2f} m/s, {how}) while the root travels {travel:.2f} m/s; "
+                                  "physics assumes a static floor and feet that stay where they land")
+    return Cause("foot_slide", f"the feet move while at floor height (median {slide:.2f} m/s; the root "
+                               f"travels {travel:.2f} m/s): foot skating or noisy tracking; physics "
+                               "assumes a static floor and feet that stay where they land")
+
+
+def _held_up_in_flight(flight: FlightGravity) -> Cause:
+    return Cause("held_up", f"with both feet off the floor ({flight.seconds:.2f} s fitted) the centre "
+                            f"of mass falls at {flight.ratio:.2f} g: something else holds the body up "
+                            "(hands or knees on the floor, a prop, a floor the feet do not reach, or "
+                            "feet tracked badly)")
+
+
+def _residual_cause(off: float, med: float, frame, air, ballistic: bool) -> Cause:
+    """What more residual than a real capture needs, with no other cause found, most likely means: a
+    guessed unit, a body that floats with its feet off the floor, or nothing named."""
+    if frame is not None and frame.unit_confidence not in KNOWN_UNIT:
+        return Cause("units", f"the length unit is uncertain (read as 1 unit = {frame.meters_per_unit:.4g} m, "
+                              f"{frame.unit_confidence}; give --units)")
+    if float(air.mean()) > 0.4 and not ballistic:
+        return Cause("held_up", f"both feet are off the floor in {air.mean():.0%} of the frames, yet the body "
+                                "does not fall as in a flight (a floating capture floor, a platform, hands "
+                                "on the floor, or feet tracked badly)")
+    return Cause("unexplained", f"{off:.0%} of its frames need more than {OFF_RESIDUAL:.0%} of body "
+                                f"weight of extra force at their own timing (median {med:.2f}): hand or "
+                                "knee contacts (cartwheels, crawls), props, noisy tracking, or keyframed "
+                                "motion that was never physical")
+
+
+def _over(res) -> tuple[float, float]:
+    """(share over :data:`OFF_RESIDUAL`, median) of residuals ``res``."""
+    return (float(np.mean(res > OFF_RESIDUAL)), float(np.median(res))) if res.size else (0.0, 0.0)
+
+
 def check_source(motion, terms, regions) -> SourceCheck:
     """How physical ``motion`` (the conformed motion physics saw, or the original) is at its own
     timing, from the ``terms`` and ``regions`` of its dynamics; the causes when it is not (see the
@@ -220,65 +277,29 @@ def check_source(motion, terms, regions) -> SourceCheck:
     points = foot_points(conformed(motion).motion, terms.body)
     flight = flight_gravity(points, fps)
     air = flight.airborne if flight.airborne is not None and len(flight.airborne) == len(res) else np.zeros(len(res), bool)
-    found = []
-    off_all = float(np.mean(res > OFF_RESIDUAL)) if res.size else 0.0
-    med_all = float(np.median(res)) if res.size else 0.0
-    up_given = frame is not None and frame.up_given
-    if med_all > 0.6 and off_all > 0.8 and (frame is None or frame.up_confidence < 0.9 or up_given):
-        conf = (", as given" if up_given else f", {frame.up_confidence:.0%} of frames agree") if frame is not None else ""
-        found.append(Cause("up_axis", f"the up axis is wrong (read as {motion.skeleton.up if frame is None else frame.up}"
-                                      f"{conf}; give --up)"))
-        # the floor, the feet and the flights are all measured along the wrong axis: nothing else to say
-        return SourceCheck(False, off_all, med_all, found, flight)
+    off_all, med_all = _over(res)
     frozen = _frozen(motion)
     root = np.asarray(terms.root_origin)[::spf]
     still = len(root) > 2 and float(np.max(np.std(root, axis=0))) < STILL_ROOT_M
-    if frozen and not still:
-        found.append(Cause("radians", f"the pose barely changes (every joint within {FROZEN_DEG:g} deg of its rest "
-                                      "pose) while the root moves: rotations written in radians but read as degrees? give --angles rad"))
-    if still and not frozen:
-        found.append(Cause("root_locked", "the root never moves: an in-place (root-locked) export, which has no "
-                                          "travel or balance to keep; physics needs the character's own root motion"))
+    up = _up_axis_cause(motion, frame, off_all, med_all)
+    if up is not None:
+        # the floor, the feet and the flights are all measured along the wrong axis: nothing else to say
+        return SourceCheck(False, off_all, med_all, [up], flight)
+    found = [c for c in [_pose_cause(frozen, still)] if c is not None]
     travel = root_travel(root, fps)
     slide, steady = floor_slide(points)
-    if slide > SLIDE_SPEED and not still and not frozen:
-        if travel < TREADMILL_TRAVEL * slide:
-            how = "steadily one way" if steady > 0.5 else "back and forth"
-            found.append(Cause("treadmill", f"a treadmill or an in-place loop: the feet move while at floor height "
-                                            f"(median {slide:.2f} m/s, {how}) while the root travels {travel:.2f} m/s; "
-                                            "physics assumes a static floor and feet that stay where they land"))
-        else:
-            found.append(Cause("foot_slide", f"the feet move while at floor height (median {slide:.2f} m/s; the root "
-                                             f"travels {travel:.2f} m/s): foot skating or noisy tracking; physics "
-                                             "assumes a static floor and feet that stay where they land"))
+    if not still and not frozen:
+        found += [c for c in [_floor_cause(slide, steady, travel)] if c is not None]
     measured = flight.ratio is not None and flight.seconds >= MIN_FLIGHT_S
     ballistic = measured and FLIGHT_G[0] <= flight.ratio <= FLIGHT_G[1]
-    trusted = not found  # a wrong up axis, a frozen pose or a pinned root make the flights meaningless
-    if trusted and measured and not ballistic:
-        if flight.ratio < HELD_G:
-            found.append(Cause("held_up", f"with both feet off the floor ({flight.seconds:.2f} s fitted) the centre "
-                                          f"of mass falls at {flight.ratio:.2f} g: something else holds the body up "
-                                          "(hands or knees on the floor, a prop, a floor the feet do not reach, or "
-                                          "feet tracked badly)"))
-        else:
-            found.append(flight_cause(flight, fps, frame))
+    # a frozen pose, a pinned root or a moving floor make the flights meaningless
+    if not found and measured and not ballistic:
+        found.append(_held_up_in_flight(flight) if flight.ratio < HELD_G else flight_cause(flight, fps, frame))
     # frames within two smoothing widths of a flight get the stance forces around it smeared into them:
     # there the flight's parabola judges the clip, not the residual
     # (flights too short to fit, as a run's may be, are not contradicted either)
     judged = ~_near(air, int(round(2 * terms.smoothing * fps))) if ballistic or not measured else np.ones(len(res), bool)
-    off = float(np.mean(res[judged] > OFF_RESIDUAL)) if judged.any() else 0.0
-    med = float(np.median(res[judged])) if judged.any() else 0.0
-    if off > MAX_OFF_SHARE and trusted and not found:
-        if frame is not None and frame.unit_confidence not in ("sure", "declared", "given"):
-            found.append(Cause("units", f"the length unit is uncertain (read as 1 unit = {frame.meters_per_unit:.4g} m, "
-                                        f"{frame.unit_confidence}; give --units)"))
-        elif float(air.mean()) > 0.4 and not ballistic:
-            found.append(Cause("held_up", f"both feet are off the floor in {air.mean():.0%} of the frames, yet the body "
-                                          "does not fall as in a flight (a floating capture floor, a platform, hands "
-                                          "on the floor, or feet tracked badly)"))
-        else:
-            found.append(Cause("unexplained", f"{off:.0%} of its frames need more than {OFF_RESIDUAL:.0%} of body "
-                                              f"weight of extra force at their own timing (median {med:.2f}): hand or "
-                                              "knee contacts (cartwheels, crawls), props, noisy tracking, or keyframed "
-                                              "motion that was never physical"))
+    off, med = _over(res[judged])
+    if off > MAX_OFF_SHARE and not found:
+        found.append(_residual_cause(off, med, frame, air, ballistic))
     return SourceCheck(not found, off, med, found, flight, travel, slide, judged)
