@@ -132,6 +132,22 @@ def test_a_looping_symlink_output_is_refused_in_one_line(tmp_path, short_bvh):
     assert code == 2 and "loops" in one_line_error(err) and loop.is_symlink()
 
 
+def test_a_looping_symlink_input_or_batch_output_is_one_line(tmp_path, short_bvh):
+    """Path.resolve() raises on a loop: the input-is-not-an-output check gave a RuntimeError traceback,
+    for a looping input of a single command and for a looping symlink where a batch writes a clip."""
+    loop = tmp_path / "in.bvh"
+    loop.symlink_to(loop.name)
+    code, _, err = run(["linear", str(loop), "-o", str(tmp_path / "o.bvh"), "--scale", "0.5"])
+    assert code == 2 and f"{loop}: cannot read" in one_line_error(err)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "short.bvh").symlink_to("short.bvh")
+    code, _, err = run(["batch", str(short_bvh), "-o", str(out), "--method", "linear", "--scale", "0.5", "--workers",
+                        "1", "--quiet"])
+    assert code == 1 and "Traceback" not in err, err
+    assert "is a symlink that loops" in rows(out)["short.bvh"]["error"] and (out / "short.bvh").is_symlink()
+
+
 # ------------------------------------------------------------------------------ D3: batch file names
 def test_clip_names_never_take_the_batch_files(tmp_path, short_bvh):
     folder = tmp_path / "in"

@@ -25,7 +25,7 @@ def file_keys(path) -> list:
     when it exists, its device and inode (hard links, bind mounts). Two paths are one file when they
     share a key; a set of inputs is a dict by these keys."""
     path = Path(path)
-    keys = [path.resolve()]
+    keys = [Path(os.path.realpath(path))]  # not Path.resolve(), which raises on a symlink loop
     try:
         st = path.stat()
     except OSError:
