@@ -23,6 +23,7 @@ optimizer's tolerance (issue 25); guided essentially exact under renames, turns 
     python3 benchmarks/metamorphic.py                          # everything (physics on --physics-clips)
     python3 benchmarks/metamorphic.py --methods guided,check   # some methods
     python3 benchmarks/metamorphic.py --table                  # only print the stored results
+    python3 benchmarks/metamorphic.py --physics-all            # physics on every clip too
 
 Raw results: one JSON per clip, variant and method in benchmarks/out/metamorphic/ (kept: a rerun
 only computes what is missing, ``--fresh`` recomputes).
@@ -70,7 +71,12 @@ def clip_paths() -> list[Path]:
     return bundled + extra + dev
 
 
+PHYSICS_ALL = False  # --physics-all: physics on every clip
+
+
 def physics_clips(paths) -> list[Path]:
+    if PHYSICS_ALL:
+        return list(paths)
     return [p for p in paths if p.parent == BUNDLED or p.name in ("13_11.amc", "02_04.bvh") or p.name in PHYSICS_DEV]
 
 
@@ -300,9 +306,13 @@ def main(argv=None):
     ap.add_argument("--variants", default=",".join(VARIANTS))
     ap.add_argument("--clips", default="", help="comma-separated file names (default: all)")
     ap.add_argument("--jobs", type=int, default=2, help="processes (at most 2: the machine is shared)")
+    ap.add_argument("--physics-all", action="store_true", help="physics on every clip, not only the bundled "
+                    "clips, 13_11, 02_04 and PHYSICS_DEV")
     ap.add_argument("--table", action="store_true", help="only print the stored results")
     ap.add_argument("--fresh", action="store_true", help="recompute stored results")
     args = ap.parse_args(argv)
+    global PHYSICS_ALL
+    PHYSICS_ALL = args.physics_all
     methods = [m for m in args.methods.split(",") if m]
     variants = [v for v in args.variants.split(",") if v]
     paths = clip_paths()

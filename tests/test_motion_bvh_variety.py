@@ -217,3 +217,19 @@ def test_motion_header_spellings(frames_word, time_word, tmp_path):
     path = tmp_path / "a.bvh"
     path.write_text(text)
     check_against_reference(path, *spec, fps=30.0)
+
+
+def test_reading_closes_the_file():
+    """The reader closed no file handle it opened (a ResourceWarning on every BVH and ASF read, seen
+    by benchmarks/metamorphic.py; a file left open stays locked on Windows)."""
+    import gc
+    import warnings
+
+    from retime.data import bundled_path
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        load_motion(bundled_path("131_01.bvh"))
+        load_motion(bundled_path("16_06.amc"))
+        gc.collect()
+    assert not [w for w in caught if issubclass(w.category, ResourceWarning)]

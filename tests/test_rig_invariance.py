@@ -291,8 +291,10 @@ def _body(motion):
 
 
 def _assert_same_body(a, b, what):
-    """Joint by joint (the names differ): segment kinds, masses, centres of mass, inertias, soles."""
+    """Joint by joint (the names differ): segment kinds, masses, centres of mass, inertias, soles and
+    strengths (the torque limits' floor: a Kinect toe, FootLeft, had the foot's)."""
     assert [a.segments[n] for n in a.names] == [b.segments[n] for n in b.names], what
+    np.testing.assert_allclose(b.strength(), a.strength(), rtol=1e-9, err_msg=what)
     np.testing.assert_allclose(b.mass, a.mass, rtol=1e-6, atol=1e-6, err_msg=what)
     np.testing.assert_allclose(b.com, a.com, atol=1e-6, err_msg=what)
     np.testing.assert_allclose(b.inertia, a.inertia, atol=1e-7, err_msg=what)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import io
 import re
+from pathlib import Path
 
 import numpy as np
 
@@ -24,7 +25,7 @@ _CHANNEL_NAMES = {c.lower(): c for c in ROTATION_CHANNELS + POSITION_CHANNELS}
 
 def read_text(path) -> str:
     try:
-        raw = open(path, "rb").read()
+        raw = Path(path).read_bytes()  # closes the file (no ResourceWarning)
     except FileNotFoundError:
         raise FormatError(path, "file not found") from None
     except IsADirectoryError:

@@ -117,6 +117,7 @@ class Body:
     strength_scale: float = 1.0
     torque_limits: dict[str, np.ndarray] = field(default_factory=dict)  # joint -> (3,) N m, symmetric
     segments: dict[str, str] = field(default_factory=dict)  # joint -> de Leva segment (informational)
+    toes: set[str] = field(default_factory=set)  # the joints from each toe joint down (toe strength), by the limbs
 
     def __post_init__(self):
         self.mass = np.asarray(self.mass, dtype=float)
@@ -157,7 +158,7 @@ class Body:
         out = np.zeros(len(self.names))
         for j, name in enumerate(self.names):
             kind = self.segments.get(name)
-            if kind == "foot" and TOE_RE.search(name):
+            if kind == "foot" and (name in self.toes or TOE_RE.search(name)):  # a Kinect toe is FootLeft
                 kind = "toe"
             out[j] = STRENGTH.get(kind, 0.0)
         return out * self.strength_scale * self.total_mass / STRENGTH_MASS
@@ -377,8 +378,10 @@ def default_body(skeleton, mass=None, feet_names=None, motion=None, frames=None)
     fps = motion.fps if motion is not None else None
     feet = [default_foot(skeleton, side, foot, toe, frames if motion is not None else None, fps)
             for side, (foot, toe) in feet_idx.items()]
+    toes = {skeleton.names[j] for foot, toe in feet_idx.values() if toe != foot
+            for j in descendants(skeleton.parents, toe)}
     return Body(names=list(skeleton.names), mass=m, com=com, inertia=inertia, feet=feet,
-                segments={skeleton.names[j]: s for j, s in sorted(seg.items())})
+                segments={skeleton.names[j]: s for j, s in sorted(seg.items())}, toes=toes)
 
 
 def world_frames(motion):
