@@ -86,15 +86,30 @@ def _chain_bvh(path: Path, joints: int, frames: int = 12) -> Path:
     return path
 
 
-def test_check_refuses_a_skeleton_without_legs_before_the_dynamics(tmp_path, monkeypatch):
-    """H2: a 3,000-joint chain took 5 min 48 s and 2.9 GB to be refused; U1: the refusal names the file."""
-    import retime.physics.api as physics_api
+@pytest.mark.parametrize("command", ["check", "physics"])
+def test_a_skeleton_without_legs_is_refused_before_the_dynamics(tmp_path, monkeypatch, command):
+    """H2: a 3,000-joint chain took 5 min 48 s and 2.9 GB to be refused by check (physics still took 81 s
+    at 2,000 joints: the conform's dummy-root walk); U1: the refusal names the file. Every door to the
+    dynamics refuses it before the conform."""
+    import retime.physics.dynamics as dynamics
 
-    monkeypatch.setattr(physics_api, "prepare_regions", lambda *a, **k: pytest.fail("the dynamics ran"))
+    monkeypatch.setattr(dynamics, "conformed", lambda *a, **k: pytest.fail("the conform ran"))
     chain = _chain_bvh(tmp_path / "chain.bvh", 6)
-    code, _, err = run(["check", str(chain)])
-    assert code == 2 and one_line_error(err).startswith(f"retime check: error: {chain}: physics-based retiming needs "
-                                                        "a two-legged character")
+    argv = [command, str(chain)] + (["-o", str(tmp_path / "out.bvh"), "--scale", "0.5"] if command == "physics" else [])
+    code, _, err = run(argv)
+    assert code == 2 and one_line_error(err).startswith(f"retime {command}: error: {chain}: physics-based retiming "
+                                                        "needs a two-legged character")
+    assert not (tmp_path / "out.bvh").exists()
+
+
+def test_check_clip_refuses_a_skeleton_without_legs_before_the_dynamics(tmp_path, monkeypatch):
+    import retime.physics.dynamics as dynamics
+    from retime.physics.check import check_clip
+
+    monkeypatch.setattr(dynamics, "conformed", lambda *a, **k: pytest.fail("the conform ran"))
+    chain = _chain_bvh(tmp_path / "chain.bvh", 6)
+    with pytest.raises(RetimeError, match=rf"^{chain}: physics-based retiming needs a two-legged character"):
+        check_clip(load_motion(chain))
 
 
 def test_subtree_sizes_match_the_descendants(short_bvh):

@@ -39,10 +39,6 @@ def run(args):
     motion = load_input(args)
     if motion.n_frames < 4:
         raise RetimeError(f"{args.motion}: checking needs at least 4 frames, the motion has {motion.n_frames}")
-    if args.body is None:  # a body file may name the feet; without one, no legs is refused before the dynamics
-        from ..physics.body import skeleton_limbs
-
-        skeleton_limbs(motion.skeleton)
     result = check_clip(motion, body=args.body, contacts=args.contacts)
     for note in result.notes:
         print(f"note: {note}")

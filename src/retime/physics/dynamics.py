@@ -50,7 +50,7 @@ from scipy.ndimage import uniform_filter1d
 
 from ..errors import RetimeError
 from ..limits import check_memory
-from .body import Body, centre_of_mass, load_body, skeleton_tree
+from .body import Body, centre_of_mass, load_body, skeleton_limbs, skeleton_tree
 from .constants import DEFAULT_SMOOTHING, STANDARD_GRAVITY, G
 from .contact_basis import ComputedContactBasis, ContactBasis, as_contact_basis
 from .contacts import (CONTACT_POINTS, EDGES_PER_CORNER, at_samples, compact_contact_basis, corner_jacobians,
@@ -501,6 +501,8 @@ def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smooth
     stance look alike, and played k times faster both grow k^2-fold (see :mod:`.regions`)."""
     check_memory(BYTES_PER_FRAME_JOINT * motion.n_frames * motion.skeleton.n_joints * max(1, int(samples_per_frame)),
                  f"physics on {motion.n_frames:,} frames")
+    if body is None:  # no legs is refused before the conform, whose dummy-root walk is slow on a long chain
+        skeleton_limbs(motion.skeleton)
     conf = conformed(motion)
     motion = conf.motion
     sk = motion.skeleton
