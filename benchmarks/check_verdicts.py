@@ -1,6 +1,7 @@
 """``retime check``'s verdicts on real captures and on the mistakes made from them (issue 25):
 per file and variant, the detected up axis and unit, the verdict and its cause codes, the flight
-gravity (g) and the time factor it gives, and (``--physics``, slow) physics' feasible fraction at
+gravity (g) and the time factor it gives, the stance time factor (:mod:`retime.physics.stance_rate`,
+measured only on a gait without a flight), and (``--physics``, slow) physics' feasible fraction at
 0.7 of the duration.
 
     python3 benchmarks/check_verdicts.py                 # ../shared/data: CMU and the dev set
@@ -8,7 +9,8 @@ gravity (g) and the time factor it gives, and (``--physics``, slow) physics' fea
     python3 benchmarks/check_verdicts.py --variants orig,fps0.8 --physics
 
 Variants (:mod:`retime.motion.mistakes`) and the cause each must give: ``fps0.8`` / ``fps1.25``
-(Frame Time x0.8 / x1.25: ``frame_rate``, where the clip has a flight to measure), ``rad``
+(Frame Time x0.8 / x1.25: ``frame_rate``, from the flights or a gait's single support; ``fps0.9`` /
+``fps1.1``, shown only when asked, are the detection limit), ``rad``
 (radians read as degrees: ``radians``), ``zup`` (Z-up read as Y-up: ``up_axis``), ``locked`` (the
 root pinned: ``root_locked``), ``treadmill`` (the root's travel taken out, on clips that travel:
 ``treadmill``). Targets: >= 95 % of the real overground captures physical; every variant not
@@ -35,12 +37,15 @@ DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 OVERGROUND_DEV = {"01_01.bvh", "AV_8Walk_Meredith_HVHA_Rep1.bvh", "jumping.bvh", "run.bvh",
                   "wd2_short_broad_jump.bvh", "woddy2_walk_straight_fast.bvh"}
 LONG = {"13_17.amc", "13_29.amc"}  # 40 s each: with --long
+LIMIT_VARIANTS = ("fps0.9", "fps1.1")  # +-10 %: what the check can still tell, shown on request
 TRAVELS_M_S = 0.5  # a clip whose root travels steadily faster gets the treadmill variant
 
 VARIANTS = {
     "orig": (lambda m: m, None),
     "fps0.8": (lambda m: M.wrong_frame_time(m, 0.8), "frame_rate"),
     "fps1.25": (lambda m: M.wrong_frame_time(m, 1.25), "frame_rate"),
+    "fps0.9": (lambda m: M.wrong_frame_time(m, 0.9), "frame_rate"),  # the detection limit: not in the defaults
+    "fps1.1": (lambda m: M.wrong_frame_time(m, 1.1), "frame_rate"),
     "rad": (M.radians_as_degrees, "radians"),
     "zup": (M.up_read_as, "up_axis"),
     "locked": (M.root_locked, "root_locked"),
@@ -61,7 +66,7 @@ def row(name, variant, m, physics: bool) -> dict:
     s = c.summary()
     out = {"file": name, "variant": variant, "up": m.skeleton.up, "unit": m.skeleton.frame.unit,
            "physical": s["physical"], "codes": s["codes"], "flight_g": s["flight_g"], "flights": s["flights"],
-           "time_factor": s["time_factor"], "off": s["off_share"], "causes": s["causes"], "feasible": None}
+           "time_factor": s["time_factor"], "stance": s["stance_time_factor"], "off": s["off_share"], "causes": s["causes"], "feasible": None}
     if physics:
         from retime.physics.api import physics_warp
 
@@ -76,16 +81,18 @@ def row(name, variant, m, physics: bool) -> dict:
 def fmt(r) -> str:
     g = "-" if r["flight_g"] is None else f"{r['flight_g']:.2f}"
     k = "-" if r["time_factor"] is None else f"{r['time_factor']:.2f}"
+    st = "-" if r["stance"] is None else f"{r['stance']:.2f}"
     f = "" if r["feasible"] is None else (f" {r['feasible']:6.1%}" if isinstance(r["feasible"], float) else f" {r['feasible']}")
     return (f"{r['file'][:26]:26s} {r['variant']:9s} {r['up']:>3s} {r['unit'][:9]:>9s} "
             f"{'physical' if r['physical'] else 'NOT':8s} {','.join(r['codes']) or '-':24s} {g:>5s} ({r['flights']:2d}) "
-            f"{k:>5s} {r['off']:5.2f}{f} {r['sec']:5.1f}s")
+            f"{k:>5s} {st:>6s} {r['off']:5.2f}{f} {r['sec']:5.1f}s")
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("files", nargs="*", type=Path)
-    ap.add_argument("--variants", default=",".join(VARIANTS), help="comma-separated, of: " + ", ".join(VARIANTS))
+    ap.add_argument("--variants", default=",".join(v for v in VARIANTS if v not in LIMIT_VARIANTS),
+                    help="comma-separated, of: " + ", ".join(VARIANTS))
     ap.add_argument("--physics", action="store_true", help="also physics' feasible fraction at 0.7 (slow)")
     ap.add_argument("--long", action="store_true", help="also the 40 s CMU clips")
     ap.add_argument("--causes", action="store_true", help="print each verdict's sentences")
@@ -97,7 +104,7 @@ def main(argv=None):
         return 1
     wanted = args.variants.split(",")
     print(f"{'file':26s} {'variant':9s} {'up':>3s} {'unit':>9s} {'verdict':8s} {'causes':24s} {'g':>5s} (fl) "
-          f"{'time':>5s} {'off':>5s}{' feas' if args.physics else ''}")
+          f"{'time':>5s} {'stance':>6s} {'off':>5s}{' feas' if args.physics else ''}")
     rows = []
     for path, overground in files:
         try:

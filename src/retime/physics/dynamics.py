@@ -369,18 +369,26 @@ def _nnls_gram(G, h, tol):
 
 
 @njit(cache=True)
+def _nonzero_columns(Ni, cols):
+    """Stores in ``cols`` the columns of one sample's ``Ni`` (R, K) that have a nonzero entry (the
+    sole corners in contact) and returns how many there are."""
+    m = 0
+    for k in range(Ni.shape[1]):
+        for r in range(Ni.shape[0]):
+            if Ni[r, k] != 0.0:
+                cols[m] = k
+                m += 1
+                break
+    return m
+
+
+@njit(cache=True)
 def _reference_forces(w, N, rows, weight, ridge, lam):
     """N (n, R, K) on velocity rows ``rows`` (sorted; the other rows are zero and add nothing)."""
     n, nr, K = N.shape
     cols = np.zeros(K, dtype=np.int64)
     for i in range(n):
-        m = 0
-        for k in range(K):
-            for r in range(nr):
-                if N[i, r, k] != 0.0:
-                    cols[m] = k
-                    m += 1
-                    break
+        m = _nonzero_columns(N[i], cols)
         if m == 0:
             continue
         G = np.zeros((m, m))

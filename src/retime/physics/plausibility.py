@@ -5,6 +5,10 @@
   fall at another rate plays at the wrong frame rate (``frame_rate``, named with its factor and the
   Frame Time that fits); one whose body barely falls with both feet off the floor is held up by
   something physics does not see (``held_up``).
+* **Stance** (:mod:`.stance_rate`), for a gait without a measured flight (walks, a run's short
+  flights): on one foot the contact forces must explain the body's wrench through that sole; the
+  uniform rate at which they do so best says how many times too slow the clip plays
+  (``frame_rate``), when it is clearly away from 1.
 * **Floor and root**: feet that move at floor height while the root goes nowhere are on a
   treadmill (``treadmill``), or skate (``foot_slide``); a root that never moves is an in-place
   export (``root_locked``); a pose that never changes while the root moves was written in radians
@@ -31,6 +35,7 @@ import numpy as np
 from scipy.ndimage import binary_dilation
 
 from .ballistic import FlightGravity, FootPoints, flight_gravity, foot_points
+from .stance_rate import StanceRate, stance_rate
 
 OFF_RESIDUAL = 0.25  # body weights: a source frame needing more is not physical as captured
 MAX_OFF_SHARE = 0.1  # a clip with more such frames is not physical as captured
@@ -43,6 +48,11 @@ FLIGHT_G = (0.8, 1.3)  # flights falling in this range (units of g) play at thei
 # (real flights on CMU and the dev set, with the default body's masses: 0.91-1.19 g; Frame Time
 # x1.25 gives 0.59-0.76 g, x0.8 1.43-1.86 g)
 MIN_FLIGHT_S = 0.1  # fitted flight (s) below this says nothing about the frame rate
+STANCE_RATE = (0.88, 1.18)  # without a flight, a single-support rate (:mod:`.stance_rate`) in this range is the clip's own
+# (real walks and a run on CMU and the dev set: 0.92-1.13; Frame Time x0.8 gives 0.71-0.96, x1.25 1.11-1.35:
+# the cue is weaker than a flight's, so half of those variants stay inside)
+STANCE_CONTRAST = 1.2  # ... and only when its own rate needs this many times the least residual (caught variants: 1.29-2.64)
+LOCOMOTION_M_S = 0.35  # ... and only on a clip whose root travels this fast: a gait (walks 0.42-2.0 m/s; a samba 0.24)
 HELD_G = 0.2  # flights falling slower than this are held up, not slowed down (a rate 2.2x off)
 TREADMILL_TRAVEL = 0.3  # the root travelling less than this share of the feet's floor speed: a treadmill
 TRAVEL_WINDOW_S = 1.0  # the root's travel is measured over this, so a stance's sway does not count
@@ -88,6 +98,7 @@ class SourceCheck:
     travel: float = 0.0  # m/s, the root's mean horizontal travel over 1 s
     slide: float = 0.0  # m/s, median horizontal speed of the foot points bearing on the floor
     judged: np.ndarray | None = None  # (F,) bool: the frames the residual judged (None: all; the rest are near flights)
+    stance: StanceRate | None = None  # the single-support rate (None: not measured, as where a flight is)
 
     @property
     def judged_share(self) -> float:
@@ -115,6 +126,8 @@ class SourceCheck:
                 "flights": 0 if f is None else len(f.flights),
                 "flight_seconds": 0.0 if f is None else round(f.seconds, 4),
                 "time_factor": None if f is None or f.time_factor is None else round(f.time_factor, 4),
+                "stance_time_factor": None if self.stance is None or self.stance.time_factor is None
+                else round(self.stance.time_factor, 4),
                 "root_travel": round(self.travel, 4), "floor_slide": round(self.slide, 4), "judged_share": round(self.judged_share, 4)}
 
 
@@ -171,27 +184,43 @@ def _unit_that_fits(flight: FlightGravity, frame) -> str | None:
     return name if abs(mpu / fit - 1.0) <= UNIT_SNAP else None
 
 
+def _rate_parts(k: float, fps: float) -> tuple[str, str, str]:
+    """(how: "1.25x too slow", the Frame Times: "Frame Time 0.0104 s; 0.0083 s fits", the fix:
+    "96 fps: give --fps 96") for a clip that plays ``k`` times too slow at ``fps``."""
+    ft, fit = 1.0 / fps, 1.0 / (fps * k)
+    how = f"{k:.2f}x too slow" if k > 1 else f"{1 / k:.2f}x too fast"
+    rate = _common_rate(1.0 / fit)
+    rate_fix = f"{1.0 / fit:.0f} fps: likely {rate:g}, give --fps {rate:g}" if rate else f"give --fps {1.0 / fit:.0f}"
+    return how, f"Frame Time {ft:.4f} s; {fit:.4f} s fits", rate_fix
+
+
 def flight_cause(flight: FlightGravity, fps: float, frame) -> Cause:
     """Flights that fall at the wrong rate: the wrong frame rate, named by its factor and the Frame
     Time that fits, or (a guessed scale, :func:`_unit_that_fits`) the wrong unit; ``frame``: the
     skeleton's FrameGuess."""
-    k = flight.time_factor
-    ft, fit = 1.0 / fps, 1.0 / (fps * k)
-    how = f"{k:.2f}x too slow" if k > 1 else f"{1 / k:.2f}x too fast"
-    rate = _common_rate(1.0 / fit)
+    how, times, rate_fix = _rate_parts(flight.time_factor, fps)
     falls = (f"in {len(flight.flights)} flight{'s' if len(flight.flights) > 1 else ''} ({flight.seconds:.2f} s) the "
              f"centre of mass falls at {flight.ratio:.2f} g, not 1 g")
-    rate_fix = f"{1.0 / fit:.0f} fps: likely {rate:g}, give --fps {rate:g}" if rate else f"give --fps {1.0 / fit:.0f}"
     unit = _unit_that_fits(flight, frame)
     if unit is not None:
         return Cause("units", f"the length unit is likely {unit}, not {frame.meters_per_unit:.4g} m "
                               f"({frame.unit_confidence}): {falls} (give --units {unit}); or it plays {how} "
-                              f"(Frame Time {ft:.4f} s; {fit:.4f} s fits: {rate_fix})")
-    s = f"plays {how}: Frame Time {ft:.4f} s; {fit:.4f} s fits ({rate_fix}); {falls}"
+                              f"({times}: {rate_fix})")
+    s = f"plays {how}: {times} ({rate_fix}); {falls}"
     if frame is not None and not (BODY_HEIGHT_M[0] <= frame.height_m <= BODY_HEIGHT_M[1]):
         s += (f"; or the length unit is off (1 unit = {frame.meters_per_unit:.4g} m, {frame.unit_confidence}, "
               f"the body {frame.height_m:.2f} m tall: give --units)")
     return Cause("frame_rate", s)
+
+
+def stance_cause(stance: StanceRate, fps: float) -> Cause:
+    """A clip without a measured flight whose single-support frames fit another rate
+    (:mod:`.stance_rate`): the wrong frame rate, named as :func:`flight_cause` names it."""
+    how, times, rate_fix = _rate_parts(stance.time_factor, fps)
+    return Cause("frame_rate", f"plays {how}: {times} ({rate_fix}); with no flight to measure, on one foot "
+                               f"({stance.seconds:.2f} s of single support) the contact forces explain the motion "
+                               f"best at {stance.time_factor:.2f}x its time, {stance.contrast:.2f}x less residual "
+                               "than at its own")
 
 
 def _near(mask, frames: int) -> np.ndarray:
@@ -295,6 +324,12 @@ def check_source(motion, terms, regions) -> SourceCheck:
     # a frozen pose, a pinned root or a moving floor make the flights meaningless
     if not found and measured and not ballistic:
         found.append(_held_up_in_flight(flight) if flight.ratio < HELD_G else flight_cause(flight, fps, frame))
+    # without a flight the single-support frames are the rate's only measure (flights stay primary)
+    # (calibrated on walks and runs, where the body vaults over one foot at a time: not on dances)
+    stance = stance_rate(terms) if not found and not measured and travel >= LOCOMOTION_M_S else None
+    if stance is not None and stance.time_factor is not None and stance.contrast >= STANCE_CONTRAST and \
+            not STANCE_RATE[0] <= stance.time_factor <= STANCE_RATE[1]:
+        found.append(stance_cause(stance, fps))
     # frames within two smoothing widths of a flight get the stance forces around it smeared into them:
     # there the flight's parabola judges the clip, not the residual
     # (flights too short to fit, as a run's may be, are not contradicted either)
@@ -302,4 +337,4 @@ def check_source(motion, terms, regions) -> SourceCheck:
     off, med = _over(res[judged])
     if off > MAX_OFF_SHARE and not found:
         found.append(_residual_cause(off, med, frame, air, ballistic))
-    return SourceCheck(not found, off, med, found, flight, travel, slide, judged)
+    return SourceCheck(not found, off, med, found, flight, travel, slide, judged, stance)

@@ -1,0 +1,87 @@
+"""The frame rate from a gait's single-support frames (:mod:`retime.physics.stance_rate`, issue 25):
+the residual kernel against SciPy's NNLS, the estimate's exact scaling with time, and walks played
+at the wrong Frame Time named ``frame_rate`` with their factor (the dev-data ones skip when
+../shared/data is absent)."""
+from __future__ import annotations
+
+import dataclasses
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.optimize import nnls
+
+from retime.data import bundled_path
+from retime.motion import load_motion
+from retime.motion import mistakes as M
+from retime.physics.check import check_clip
+from retime.physics.dynamics import RIDGE, dynamics_terms
+from retime.physics.plausibility import STANCE_RATE
+from retime.physics.stance_rate import RATES, _residuals, stance_rate
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+
+
+def _factor(sentence: str) -> float:
+    k, how = re.search(r"plays (\d+\.\d+)x too (slow|fast)", sentence).groups()
+    return float(k) if how == "slow" else 1.0 / float(k)
+
+
+def test_the_residual_kernel_is_the_nonnegative_least_squares_residual():
+    rng = np.random.default_rng(3)
+    n, K = 12, 9
+    A = rng.normal(size=(n, 6, K))
+    A[:, :, 5:] = 0.0  # columns of a foot off the floor: skipped
+    b, c = rng.normal(size=(n, 6)), rng.normal(size=(n, 6))
+    out = np.zeros((len(RATES), n))
+    _residuals(A, b, c, RATES, float(RIDGE), out)
+    for i in range(n):
+        for k in (0, 7, 15, 30):
+            w = RATES[k] ** 2 * b[i] + c[i]
+            assert out[k, i] == pytest.approx(nnls(A[i, :, :5], w)[1], rel=1e-6, abs=1e-9)
+
+
+def test_the_stance_rate_scales_with_time_exactly(walk):
+    # velocity terms 1/k^2 as large (the clip played k times too slow): the rate found is k times as
+    # large, to rounding, when k is a whole number of the grid's steps
+    terms = dynamics_terms(walk)
+    pd0 = terms.combine()
+    k = float(RATES[3] / RATES[0])
+    own, slow = stance_rate(terms, pd0), stance_rate(terms, dataclasses.replace(pd0, b=pd0.b / k ** 2))
+    assert own.time_factor is not None and slow.time_factor == pytest.approx(k * own.time_factor, rel=1e-9)
+    assert slow.contrast > 1.2 > own.contrast
+    assert STANCE_RATE[0] <= own.time_factor <= STANCE_RATE[1]
+
+
+def test_a_walk_played_too_slow_is_named_from_its_stance(walk, jump):
+    real = check_clip(walk)
+    assert real.physical and real.verdict.flight.seconds == 0.0  # no flight to measure
+    c = check_clip(M.wrong_frame_time(walk, 1.25))
+    assert c.verdict.codes == ["frame_rate"] and "no flight to measure" in c.verdict.causes[0]
+    assert _factor(c.verdict.causes[0]) == pytest.approx(1.25, rel=0.1)
+    assert "Frame Time 0.0104 s" in c.verdict.causes[0]
+    assert c.summary()["stance_time_factor"] == pytest.approx(1.25, rel=0.1)
+    assert check_clip(jump).verdict.stance is None  # where a flight is measured, it decides
+
+
+def _dev(name):
+    path = DATA / name
+    if not path.exists():
+        pytest.skip(f"{path} is absent")
+    return load_motion(path)
+
+
+@pytest.mark.parametrize("factor", [0.8, 1.25])
+def test_a_walk_at_the_wrong_frame_time_is_named_with_its_factor(factor):
+    walk = _dev("bvh-dev/AV_8Walk_Meredith_HVHA_Rep1.bvh")
+    assert check_clip(walk).physical
+    c = check_clip(M.wrong_frame_time(walk, factor))
+    assert c.verdict.codes == ["frame_rate"]
+    assert _factor(c.verdict.causes[0]) == pytest.approx(factor, rel=0.1)
+
+
+def test_a_dance_is_not_judged_as_a_gait():
+    # a samba on one foot at a time, travelling 0.24 m/s: its stance rate (0.56) is not a gait's
+    c = check_clip(_dev("bvh-dev/samba_dancing.bvh"))
+    assert c.physical and c.verdict.stance is None
