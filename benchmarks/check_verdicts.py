@@ -144,6 +144,12 @@ def steady_travel(m) -> float:
 
 def score(rows):
     real = [r for r in rows if r["variant"] == "orig" and r["overground"]]
+    # the stance cue's spread (measured on gaits without a flight): where real clips and variants meet
+    for v in VARIANTS:
+        st = sorted(r["stance"] for r in rows if r["variant"] == v and r["overground"] and r["stance"] is not None)
+        if st:
+            print(f"stance time factor, {v:9s}: {st[0]:.2f}-{st[-1]:.2f} on {len(st)} clips "
+                  f"(median {st[len(st) // 2]:.2f})")
     if real:
         ok = sum(r["physical"] for r in real)
         print(f"\nreal overground captures physical: {ok}/{len(real)} ({ok / len(real):.0%}); not: "

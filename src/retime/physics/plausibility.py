@@ -219,8 +219,8 @@ def stance_cause(stance: StanceRate, fps: float) -> Cause:
     how, times, rate_fix = _rate_parts(stance.time_factor, fps)
     return Cause("frame_rate", f"plays {how}: {times} ({rate_fix}); with no flight to measure, on one foot "
                                f"({stance.seconds:.2f} s of single support) the contact forces explain the motion "
-                               f"best at {stance.time_factor:.2f}x its time, {stance.contrast:.2f}x less residual "
-                               "than at its own")
+                               f"best with its time scaled by {stance.time_factor:.2f}; at its own rate the residual "
+                               f"is {stance.contrast:.2f}x that least one")
 
 
 def _near(mask, frames: int) -> np.ndarray:
