@@ -7,7 +7,8 @@ so ``pip install -e .`` and a wheel build both do), and anyone can run it by han
     python -m retime.precompile            # or: python -m retime.precompile guided
 
 It compiles by running the methods themselves on a bundled clip: guided (exact and heuristic) and
-physics (fixed and free duration, with and without changed gravity), so every kernel gets
+physics (fixed and free duration, with and without changed gravity, and the check of a walk,
+which times it on one foot), so every kernel gets
 exactly the signatures and compiler settings of a real run (it calls `guided_solve` and
 `physics_warp`, which `retime.method.solve` calls too; physics on one process, so that the pool
 does not compile the region kernels once per worker).
@@ -24,12 +25,15 @@ import time
 from .data import bundled_path
 
 CLIP = "16_06.amc"
+WALK = "16_15.amc"
 
 
 def _runs(motion):
     """The method calls whose kernels a first run needs: (label, callable)."""
     from .guided import guided_solve
+    from .motion import load_motion
     from .physics.api import physics_warp
+    from .physics.check import check_clip
     from .physics.regions import RegionOptions
 
     d = motion.duration * 0.5
@@ -44,6 +48,8 @@ def _runs(motion):
         ("physics", lambda: physics(duration=d)),
         ("physics, free duration", lambda: physics()),
         ("physics, changed gravity", lambda: physics(duration=d, gravity=(0.0, -4.9, 0.0))),
+        # a walk has no flight to time it: the check times it on one foot (physics.stance_rate's kernel)
+        ("physics check, a walk", lambda: check_clip(load_motion(bundled_path(WALK)))),
     ]
 
 

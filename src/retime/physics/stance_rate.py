@@ -114,17 +114,22 @@ def stance_rate(terms, pd0=None) -> StanceRate:
     index = N.row_index()[:nr]
     if (index < 0).any():
         return empty
-    A = np.zeros((int(use.sum()), nr, N.n_columns))
-    at = 0
+    # a chunk of samples at a time, as the contact basis is made: a long capture's single-support
+    # frames never sit in memory at once
+    b = np.asarray(pd0.b)[:, :nr]
+    c = np.asarray(pd0.c)[:, :nr]
+    squares = np.zeros(len(RATES))
     for part, values in N.chunks():
         pick = np.flatnonzero(use[part])
-        A[at:at + len(pick)] = values[pick][:, index]
-        at += len(pick)
+        if not len(pick):
+            continue
+        out = np.zeros((len(RATES), len(pick)))
+        rows = pick + part.start
+        _residuals(np.ascontiguousarray(values[pick][:, index]), np.ascontiguousarray(b[rows]),
+                   np.ascontiguousarray(c[rows]), RATES, float(RIDGE), out)
+        squares += (out ** 2).sum(axis=1)
     bw = float(pd0.total_mass) * G
-    out = np.zeros((len(RATES), len(A)))
-    _residuals(A, np.ascontiguousarray(pd0.b[use, :nr]), np.ascontiguousarray(pd0.c[use, :nr]), RATES,
-               float(RIDGE), out)
-    rms = np.sqrt(np.mean((out / bw) ** 2, axis=1))
+    rms = np.sqrt(squares / int(use.sum())) / bw
     return StanceRate(_minimum(rms), seconds, rms)
 
 
