@@ -42,6 +42,53 @@ def test_the_residual_kernel_is_the_nonnegative_least_squares_residual():
             assert out[k, i] == pytest.approx(nnls(A[i, :, :5], w)[1], rel=1e-6, abs=1e-9)
 
 
+def _pendulum_on_one_foot(k: float, fps: float = 100.0, seconds: float = 0.6):
+    """A point mass of 70 kg vaulting over one foot as an inverted pendulum (c_h'' = g/h (c_h - p_h),
+    height h constant), as the path dynamics of a clip played ``k`` times too slow: its velocity
+    terms are 1/k^2 of the real ones. One contact point at p with the friction pyramid's 4 edges;
+    root rows: force, then moment about the centre of mass (the root)."""
+    from types import SimpleNamespace
+
+    from retime.physics.constants import G
+    from retime.physics.contacts import friction_edges
+    from retime.physics.dynamics import PathDynamics
+
+    m, h, p = 70.0, 0.9, np.array([0.0, 0.0, 0.1])
+    w = np.sqrt(G / h)
+    t = np.arange(int(seconds * fps)) / fps - 0.5 * seconds
+    # CoM behind the foot and decelerating, then ahead and accelerating (x); swaying back (z)
+    d = np.stack([0.12 * np.sinh(w * t), np.zeros_like(t), -0.04 * np.cosh(w * t)], axis=1)
+    com = p + d + np.array([0.0, h, 0.0])
+    accel = (G / h) * d
+    n = len(t)
+    b, c = np.zeros((n, 6)), np.zeros((n, 6))
+    b[:, :3] = m * accel / k ** 2
+    c[:, 1] = m * G
+    edges = friction_edges(0.5)
+    N = np.zeros((n, 6, 4))
+    N[:, :3] = edges.T[None]
+    N[:, 3:] = np.cross(p - com[:, None, :], edges[None]).transpose(0, 2, 1)
+    contact = np.zeros((n, 4), bool)
+    contact[:, :2] = True  # the left foot alone
+    pd0 = PathDynamics(times=t - t[0], a=np.zeros((n, 6)), b=b, c=c, N=N, contact=contact, tau_lo=np.zeros(6),
+                       tau_hi=np.zeros(6), total_mass=m, fps=fps)
+    return SimpleNamespace(samples_per_frame=1, fps=fps, smoothing=0.05), pd0
+
+
+@pytest.mark.parametrize("k", [1.0, 0.8, 1.25])
+def test_an_inverted_pendulum_on_one_foot_gives_its_time_factor(k):
+    # the contact force points from the foot to the centre of mass (no moment about it) only at the
+    # true rate: there the residual is zero, anywhere else the foot cannot give the wrench
+    terms, pd0 = _pendulum_on_one_foot(k)
+    found = stance_rate(terms, pd0)
+    assert found.time_factor == pytest.approx(k, rel=0.02)
+    # (zero at the grid's rate nearest k: exactly at k = 1, which the grid holds)
+    assert found.residual.min() < 0.05 * min(found.residual[0], found.residual[-1])
+    if k == 1.0:
+        assert found.residual.min() < 1e-9 and found.contrast == pytest.approx(1.0)
+    assert found.seconds == pytest.approx(0.6)
+
+
 def test_the_stance_rate_scales_with_time_exactly(walk):
     # velocity terms 1/k^2 as large (the clip played k times too slow): the rate found is k times as
     # large, to rounding, when k is a whole number of the grid's steps
