@@ -16,6 +16,17 @@ def install_addon(zip_path):
     return next(a.module for a in bpy.context.preferences.addons if a.module.endswith(".retime"))
 
 
+def open_rig(blend, name="rig"):
+    """Open ``blend`` (the add-on stays installed: it lives in the preferences) and make the armature
+    ``name`` the active and only selected object."""
+    bpy.ops.wm.open_mainfile(filepath=blend, load_ui=False)
+    rig = bpy.data.objects[name]
+    for obj in bpy.context.scene.objects:
+        obj.select_set(obj is rig)
+    bpy.context.view_layer.objects.active = rig
+    return rig
+
+
 def world_heads(arm, names, frames):
     """(frames, bones, 3): the world heads of the bones ``names`` of ``arm`` on each scene frame, as evaluated."""
     out = np.empty((len(frames), len(names), 3))
