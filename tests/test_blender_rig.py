@@ -9,8 +9,9 @@ import pytest
 
 from retime.motion import load_motion
 
-from _blender_support import (TOLERANCE, blender_env, build_addon, joint_positions_blender, max_error_over_height,
-                              play_addon_script, require_bpy, retime_wrapper, run_bpy, run_retime)
+from _blender_support import (TOLERANCE, blender_env, build_addon, joint_positions_blender, load_motion_bpy,
+                              max_error_over_height, play_addon_script, require_bpy, retime_wrapper, run_bpy,
+                              run_retime)
 
 CASES = {"linear_rig": ["linear", "--scale", "0.5"], "physics_rig": ["physics", "--scale", "0.5"]}
 
@@ -170,3 +171,56 @@ def test_check_on_the_rigify_jump_keys_the_reports_residual(rigify_jump):
     np.testing.assert_allclose(result["residual_curve"], expected, atol=1e-3)
     assert max(expected) > 1.0  # the landing: the curve is not flat
     assert f"Check 'Action': {report['verdict']}" in done.stdout + done.stderr
+
+
+LEGS = ("DEF-thigh", "DEF-shin", "DEF-foot", "DEF-toe")  # Rigify's stretching chains (see the write test)
+
+
+@pytest.mark.parametrize("name", ["rigify.fbx", "rigify.glb"])
+def test_the_cli_reads_a_rigify_export_by_the_add_ons_rule(rigify_jump, name):
+    """A game export of the Rigify character, its mesh skinned to the DEF bones: the FBX holds the DEF
+    bones and their ORG and MCH ancestors (278 bones, 2 roots), the glTF the DEF bones alone (98 roots),
+    every bone marked deform by Blender's importers, and retime refused both ("2 root bones"). The CLI reads
+    the add-on's deform skeleton (the bones that weight the mesh, joined by the same rule, the same code:
+    armature.skeleton), as Blender plays the file, standing up in metres."""
+    tmp, _, _ = rigify_jump
+    addon = load_motion(tmp / "physics" / "source.bvh")
+    motion, names, positions, height = joint_positions_blender(tmp / name)
+    assert sorted(names) == sorted(addon.skeleton.names) and len(names) == 160
+    assert motion.skeleton.up == "+y" and motion.skeleton.frame.unit == "m" and motion.n_frames == 204
+    played = np.load(tmp / (name + ".npz"))
+    error = max_error_over_height(list(names), positions, list(played["names"]), played["heads"], height)
+    assert error < TOLERANCE, f"{name} read {error:.2e} of the height off Blender's playing of it"
+
+
+def test_physics_on_a_rigify_fbx_writes_it_back(rigify_jump):
+    """``retime physics rigify.fbx -o out.fbx``: the deform skeleton retimed, written on the file's armature
+    (every bone keyed: the ORG and MCH bones move with the DEF bones nearest below them), its mesh kept. Read
+    back, the DEF bones play the file's motion through the warp; but for the legs: Rigify's DEF chains
+    stretch (about 1 %), which the BVH convention holds as moving heads, and Blender's FBX importer connects
+    a bone whose head sits at its parent's tail at rest, so a connected head cannot move off it."""
+    from retime.motion import save_bvh
+    from retime.warp import TimingCurve, apply_timing
+
+    tmp, _, _ = rigify_jump
+    code, _, err = run_retime("physics", tmp / "rigify.fbx", "--scale", JUMP_SCALE, "-o", tmp / "out.fbx",
+                              "--warp", tmp / "fbx_warp.csv", env=blender_env(tmp))
+    assert code == 0, err
+    curve = TimingCurve.from_csv(tmp / "fbx_warp.csv")
+    expected = apply_timing(load_motion_bpy(tmp / "rigify.fbx"), curve)
+    assert expected.n_frames == 163
+    save_bvh(expected, tmp / "expected.bvh")
+    _, names, want, height = joint_positions_blender(tmp / "expected.bvh")
+    motion, got_names, got, _ = joint_positions_blender(tmp / "out.fbx")
+    assert motion.n_frames == 163 and sorted(got_names) == sorted(names)
+    legs = [n for n in names if n.split(".")[0] in LEGS]
+    rest = [n for n in names if n not in legs]
+    index = {n: i for i, n in enumerate(names)}
+    error = max_error_over_height(rest, want[:, [index[n] for n in rest]], list(got_names), got, height)
+    assert error < TOLERANCE, f"DEF bones {error:.2e} of the height off the retimed file"
+    error = max_error_over_height(legs, want[:, [index[n] for n in legs]], list(got_names), got, height)
+    assert error < 1e-2, f"the legs {error:.2e} of the height off the retimed file"
+    run_bpy("inspect_scene.py", tmp / "out.fbx", tmp / "out.json", env=blender_env(tmp))
+    scene = json.loads((tmp / "out.json").read_text())
+    assert scene["meshes"]["Body"]["deformed_by_armature"] and scene["meshes"]["Body"]["groups"] == 160
+    assert scene["armatures"]["rig"]["bones"] == 278

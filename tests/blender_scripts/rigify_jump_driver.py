@@ -5,16 +5,19 @@ and an FBX export of the baked rig. ``python rigify_jump_driver.py ADDON.zip RIG
 RESULTS.json``
 
 FOLDER gets the DEF bones' world heads on every source frame (source.npz) and on every output frame of the
-physics bake (physics.npz), retime's files of each run (FOLDER/check, FOLDER/physics) and the baked rig as
-FBX with its deform bones alone (rigify.fbx), as a game export has it; RESULTS.json says what the
+physics bake (physics.npz), retime's files of each run (FOLDER/check, FOLDER/physics) and the baked rig, a
+mesh skinned to its DEF bones, as a game export has it: FBX of the deform bones (rigify.fbx: Blender keeps
+their ORG and MCH ancestors too) and glTF (rigify.glb: the DEF bones alone, 98 roots), with the DEF bones'
+world heads as Blender plays each file imported (NAME.npz); RESULTS.json says what the
 operators returned, the residual curve Check keyed, and what the bake animates."""
 import os
 import sys
 
 import bpy
+import numpy as np
 from mathutils import Matrix
 
-from _addon_script import bake_and_record, finish, install_addon, open_rig, world_heads
+from _addon_script import bake_and_record, finish, install_addon, open_rig, skin_boxes, world_heads
 
 FPS = 60  # the scene's rate: the capture's 120 Hz halved (the BVH importer scales its keys to it)
 SCALE = 0.8  # the physics retime: 0.8 of the duration
@@ -85,21 +88,35 @@ def main(zip_path, blend, bvh, folder, results_path):
     rig = open_rig(blend)
     start, end = constrain_and_bake(rig, bvh)
     names = [b.name for b in rig.data.bones if b.use_deform]
-    import numpy as np
-
     np.savez(os.path.join(folder, "source.npz"), heads=world_heads(rig, names, range(start, end + 1)),
              names=np.array(names))
     original, slot = rig.animation_data.action, getattr(rig.animation_data, "action_slot", None)
     result = {"start": start, "end": end, "deform_bones": len(names), "controls": sorted(FOLLOW)}
     result["check"] = sorted(bpy.ops.retime.check(exchange_folder=os.path.join(folder, "check")))
     result["residual_curve"] = residual_curve(armature, start, end)
+    body = skin_boxes(rig, names)
+    body.select_set(True)
     bpy.ops.export_scene.fbx(filepath=os.path.join(folder, "rigify.fbx"), use_selection=True,
-                             object_types={"ARMATURE"}, use_armature_deform_only=True, add_leaf_bones=False,
-                             bake_anim=True, bake_anim_use_all_actions=False, bake_anim_use_nla_strips=False)
+                             object_types={"ARMATURE", "MESH"}, use_armature_deform_only=True, add_leaf_bones=False,
+                             bake_anim=True, bake_anim_use_all_actions=False, bake_anim_use_nla_strips=False,
+                             bake_anim_simplify_factor=0.0)
+    bpy.ops.export_scene.gltf(filepath=os.path.join(folder, "rigify.glb"), use_selection=True, export_def_bones=True,
+                              export_animation_mode="ACTIVE_ACTIONS", export_force_sampling=True)
+    bpy.data.objects.remove(body)
     result["physics"] = bake_and_record(rig, armature, names, folder, "physics", method="physics", scale=SCALE,
                                         apply="BAKE")
     result["original_kept"] = original.name in bpy.data.actions and rig.animation_data.action is not original
-    armature.assign_action(rig, original, slot)
+    for name in ("rigify.fbx", "rigify.glb"):  # the exports as Blender plays them, imported
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        bpy.context.scene.render.fps = FPS
+        path = os.path.join(folder, name)
+        if name.endswith(".fbx"):
+            bpy.ops.import_scene.fbx(filepath=path, anim_offset=0.0)
+        else:
+            bpy.ops.import_scene.gltf(filepath=path)
+        imported = next(o for o in bpy.context.scene.objects if o.type == "ARMATURE")
+        np.savez(os.path.join(folder, name + ".npz"), heads=world_heads(imported, names, range(start, end + 1)),
+                 names=np.array(names))
     finish(result, results_path)
 
 
