@@ -92,11 +92,11 @@ def load_motion_bpy(path):
 
 
 def joint_positions_blender(path):
-    """retime's forward kinematics of a motion file, in Blender's axes (the BVH importer's Y up -> Z up),
-    with the joint names and the body height (extent along the up axis)."""
-    from retime.motion import forward_kinematics
+    """retime's forward kinematics of a motion file (or a Motion), in Blender's axes (the BVH importer's Y
+    up -> Z up), with the joint names and the body height (extent along the up axis)."""
+    from retime.motion import Motion, forward_kinematics
 
-    motion = load_motion_bpy(path)
+    motion = path if isinstance(path, Motion) else load_motion_bpy(path)
     positions, _ = forward_kinematics(motion)
     height = float(np.ptp(positions[..., 1]))
     return motion, motion.skeleton.names, np.stack([positions[..., 0], -positions[..., 2], positions[..., 1]], -1), height

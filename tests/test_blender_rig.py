@@ -176,8 +176,15 @@ def test_check_on_the_rigify_jump_keys_the_reports_residual(rigify_jump):
 LEGS = ("DEF-thigh", "DEF-shin", "DEF-foot", "DEF-toe")  # Rigify's stretching chains (see the write test)
 
 
+@pytest.fixture(scope="module")
+def exports(rigify_jump):
+    """The rigify_jump's FBX and glTF exports as retime reads them, each read once for the module."""
+    tmp = rigify_jump[0]
+    return {name: load_motion_bpy(tmp / name) for name in ("rigify.fbx", "rigify.glb")}
+
+
 @pytest.mark.parametrize("name", ["rigify.fbx", "rigify.glb"])
-def test_the_cli_reads_a_rigify_export_by_the_add_ons_rule(rigify_jump, name):
+def test_the_cli_reads_a_rigify_export_by_the_add_ons_rule(rigify_jump, exports, name):
     """A game export of the Rigify character, its mesh skinned to the DEF bones: the FBX holds the DEF
     bones and their ORG and MCH ancestors (278 bones, 2 roots), the glTF the DEF bones alone (98 roots),
     every bone marked deform by Blender's importers, and retime refused both ("2 root bones"). The CLI reads
@@ -185,7 +192,7 @@ def test_the_cli_reads_a_rigify_export_by_the_add_ons_rule(rigify_jump, name):
     armature.skeleton), as Blender plays the file, standing up in metres."""
     tmp, _, _ = rigify_jump
     addon = load_motion(tmp / "physics" / "source.bvh")
-    motion, names, positions, height = joint_positions_blender(tmp / name)
+    motion, names, positions, height = joint_positions_blender(exports[name])
     assert sorted(names) == sorted(addon.skeleton.names) and len(names) == 160
     assert motion.skeleton.up == "+y" and motion.skeleton.frame.unit == "m" and motion.n_frames == 204
     played = np.load(tmp / (name + ".npz"))
@@ -193,13 +200,12 @@ def test_the_cli_reads_a_rigify_export_by_the_add_ons_rule(rigify_jump, name):
     assert error < TOLERANCE, f"{name} read {error:.2e} of the height off Blender's playing of it"
 
 
-def test_physics_on_a_rigify_fbx_writes_it_back(rigify_jump):
+def test_physics_on_a_rigify_fbx_writes_it_back(rigify_jump, exports):
     """``retime physics rigify.fbx -o out.fbx``: the deform skeleton retimed, written on the file's armature
     (every bone keyed: the ORG and MCH bones move with the DEF bones nearest below them), its mesh kept. Read
     back, the DEF bones play the file's motion through the warp; but for the legs: Rigify's DEF chains
     stretch (about 1 %), which the BVH convention holds as moving heads, and Blender's FBX importer connects
     a bone whose head sits at its parent's tail at rest, so a connected head cannot move off it."""
-    from retime.motion import save_bvh
     from retime.warp import TimingCurve, apply_timing
 
     tmp, _, _ = rigify_jump
@@ -207,10 +213,9 @@ def test_physics_on_a_rigify_fbx_writes_it_back(rigify_jump):
                               "--warp", tmp / "fbx_warp.csv", env=blender_env(tmp))
     assert code == 0, err
     curve = TimingCurve.from_csv(tmp / "fbx_warp.csv")
-    expected = apply_timing(load_motion_bpy(tmp / "rigify.fbx"), curve)
+    expected = apply_timing(exports["rigify.fbx"], curve)
     assert expected.n_frames == 163
-    save_bvh(expected, tmp / "expected.bvh")
-    _, names, want, height = joint_positions_blender(tmp / "expected.bvh")
+    _, names, want, height = joint_positions_blender(expected)
     motion, got_names, got, _ = joint_positions_blender(tmp / "out.fbx")
     assert motion.n_frames == 163 and sorted(got_names) == sorted(names)
     legs = [n for n in names if n.split(".")[0] in LEGS]
