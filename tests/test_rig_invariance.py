@@ -514,3 +514,24 @@ def test_a_body_standing_on_its_feet_with_still_hands_is_y_up():
     turned = positions[..., [1, 2, 0]]  # y up -> z up: the rule follows the axes
     lift = np.median(turned[:, 2] - turned[:, ankles].mean(axis=1), axis=0)
     assert up_from_contacts(turned, parents, fps, "+z", lift, 1.0, ankles) == ("+z", 1.0)
+
+
+def test_rigify_spine_names_give_the_head(jump, tmp_path):
+    """Rigify names its neck and head as spine joints (DEF-spine.004 to .006, above the chest DEF-spine.003
+    that carries the shoulders): no head was found, so the standing height, one of the two unit cues,
+    was measured from the root ("root 0.13 m above the feet" on the keyed Rigify clip). The top of the
+    spine above the arms' branch is the head: the same head height as the CMU names give."""
+    import dataclasses
+
+    original = _written(jump, tmp_path, "orig")
+    rigify = V.rename(original, "rigify")
+    spine = {"DEF-Root0": "DEF-spine", "DEF-Lowerback11": "DEF-spine.001", "DEF-Upperback12": "DEF-spine.002",
+             "DEF-Thorax13": "DEF-spine.003", "DEF-neck": "DEF-spine.004", "DEF-neck1": "DEF-spine.005",
+             "DEF-head": "DEF-spine.006"}
+    assert set(spine) <= set(rigify.skeleton.names), rigify.skeleton.names
+    sk = dataclasses.replace(rigify.skeleton, names=[spine.get(n, n) for n in rigify.skeleton.names])
+    renamed = _written(rigify.replace(skeleton=sk), tmp_path, "rigify_spine")
+    frame = renamed.skeleton.frame
+    assert renamed.skeleton.names[frame.limbs.head] == "DEF-spine.006"
+    assert frame.height_m == pytest.approx(original.skeleton.frame.height_m, rel=1e-6)
+    assert (frame.unit, frame.unit_confidence) == (original.skeleton.frame.unit, original.skeleton.frame.unit_confidence)
