@@ -33,16 +33,12 @@ class Hierarchy:
     """An armature's bones in depth-first order (parents before children) with their rest matrices, and
     for writing poses back, every bone of the armature with the kept bone it moves with (``leaders``)."""
 
-    def __init__(self, obj, deform_only=False, keep_names=None):
-        """``deform_only``: the deform bones alone, each under its nearest deform ancestor (a rig whose
-        controls drive the deform skeleton through constraints: Rigify's DEF bones); a deform bone with no
-        deform ancestor but the topmost hangs from the deform bone nearest its head (:func:`_adopt`).
-        ``keep_names``: those bones alone, several roots joined the same way (:func:`skeleton`)."""
-        if keep_names is not None:
-            keep = lambda b: b.name in keep_names  # noqa: E731
-        else:
-            keep = (lambda b: b.use_deform) if deform_only else (lambda b: True)
-        join = deform_only or keep_names is not None
+    def __init__(self, obj, keep_names=None):
+        """Every bone, in one tree or refused; ``keep_names``: those bones alone (:func:`skeleton`: the
+        deform skeleton), each under its nearest kept ancestor, and a kept bone with none but the topmost
+        hanging from the kept bone nearest its head (:func:`_adopt`)."""
+        def keep(b):
+            return keep_names is None or b.name in keep_names
 
         def parent(b):
             p = b.parent
@@ -57,11 +53,11 @@ class Hierarchy:
             return out
 
         roots = [b for b in obj.data.bones if keep(b) and parent(b) is None]
-        what = "deform bones" if deform_only else "bones"
+        what = "bones" if keep_names is None else "deform bones"
         if not roots:
             raise ArmatureError(f"armature {obj.name!r} has no {what}")
         adopted = {}  # bone name -> the deform bone it hangs from by geometry
-        if join and len(roots) > 1:
+        if keep_names is not None and len(roots) > 1:
             roots, adopted = _adopt(roots, [b for b in obj.data.bones if keep(b)], parent)
         if len(roots) > 1:
             names = ", ".join(repr(b.name) for b in roots[:4]) + (", ..." if len(roots) > 4 else "")
