@@ -77,12 +77,26 @@ def build_addon(folder: Path) -> Path:
     return build.build(folder)
 
 
-def joint_positions_blender(path):
-    """retime's forward kinematics of a motion file, in Blender's axes (the BVH importer's Y up -> Z up),
-    with the joint names and the body height (extent along the up axis)."""
-    from retime.motion import forward_kinematics, load_motion
+def load_motion_bpy(path):
+    """load_motion in this process, an FBX or glTF through the tests' bpy Python."""
+    from retime.motion import blender_io, load_motion
 
-    motion = load_motion(path)
+    old = os.environ.get("RETIME_BPY_PYTHON")
+    os.environ["RETIME_BPY_PYTHON"] = bpy_python() or ""
+    blender_io.bpy_command.cache_clear()
+    try:
+        return load_motion(path)
+    finally:
+        os.environ.pop("RETIME_BPY_PYTHON") if old is None else os.environ.__setitem__("RETIME_BPY_PYTHON", old)
+        blender_io.bpy_command.cache_clear()
+
+
+def joint_positions_blender(path):
+    """retime's forward kinematics of a motion file (or a Motion), in Blender's axes (the BVH importer's Y
+    up -> Z up), with the joint names and the body height (extent along the up axis)."""
+    from retime.motion import Motion, forward_kinematics
+
+    motion = path if isinstance(path, Motion) else load_motion_bpy(path)
     positions, _ = forward_kinematics(motion)
     height = float(np.ptp(positions[..., 1]))
     return motion, motion.skeleton.names, np.stack([positions[..., 0], -positions[..., 2], positions[..., 1]], -1), height

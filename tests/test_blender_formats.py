@@ -7,8 +7,8 @@ import os
 import numpy as np
 import pytest
 
-from _blender_support import (SHARED_BVH, TOLERANCE, blender_env, joint_positions_blender, max_error_over_height,
-                              require_bpy, run_bpy, run_retime)
+from _blender_support import (SHARED_BVH, TOLERANCE, blender_env, joint_positions_blender, load_motion_bpy,
+                              max_error_over_height, require_bpy, run_bpy, run_retime)
 from retime.data import bundled_path
 from retime.motion import blender_io, forward_kinematics, load_motion
 from retime.warp import apply_timing, scale_warp
@@ -40,18 +40,6 @@ def inspect(tmp, path, *extra):
     return json.loads(out.read_text())
 
 
-def load_motion_bpy(tmp, path):
-    """load_motion in this process with the tests' bpy Python."""
-    old = os.environ.get("RETIME_BPY_PYTHON")
-    os.environ["RETIME_BPY_PYTHON"] = blender_env(tmp)["RETIME_BPY_PYTHON"]
-    blender_io.bpy_command.cache_clear()
-    try:
-        return load_motion(path)
-    finally:
-        os.environ.pop("RETIME_BPY_PYTHON") if old is None else os.environ.__setitem__("RETIME_BPY_PYTHON", old)
-        blender_io.bpy_command.cache_clear()
-
-
 def same_poses(a, b):
     """Largest joint distance between two motions of the same skeleton, over the body height."""
     pa, _ = forward_kinematics(a)
@@ -66,7 +54,7 @@ def same_poses(a, b):
                                            ("jump30.glb", "jump30.bvh", 30), ("jump30.gltf", "jump30.bvh", 30)])
 def test_read_keeps_frames_rate_and_poses(characters, name, bvh, fps):
     source = load_motion(characters / bvh)
-    read = load_motion_bpy(characters, characters / name)
+    read = load_motion_bpy(characters / name)
     assert (read.n_frames, read.fps) == (source.n_frames, fps) == (407, fps)  # a glTF at 30 Hz is not read at 24
     assert same_poses(source, read) < TOLERANCE
     assert read.skeleton.up == "+y" and read.skeleton.meters_per_unit == 1.0
@@ -78,7 +66,7 @@ def test_convert_round_trip(characters, source, output):
     """retime convert FILE OUT: the same frames, frame rate and poses read back, meshes and materials kept."""
     tmp = characters
     retime(tmp, "convert", tmp / source, tmp / output)
-    before, after = load_motion_bpy(tmp, tmp / source), load_motion_bpy(tmp, tmp / output)
+    before, after = load_motion_bpy(tmp / source), load_motion_bpy(tmp / output)
     assert (after.n_frames, after.fps) == (before.n_frames, before.fps)
     assert same_poses(before, after) < TOLERANCE
     fps = str(round(before.fps))
@@ -101,7 +89,7 @@ def test_retimed_file_plays_the_new_timing(characters, source, output):
     Blender with its mesh and the new frame range."""
     tmp = characters
     retime(tmp, "linear", tmp / source, "-o", tmp / output, "--scale", "0.5")
-    before, after = load_motion_bpy(tmp, tmp / source), load_motion_bpy(tmp, tmp / output)
+    before, after = load_motion_bpy(tmp / source), load_motion_bpy(tmp / output)
     expected = apply_timing(before, scale_warp(before.duration, 0.5, before.fps))
     assert (after.n_frames, after.fps) == (expected.n_frames, before.fps) == (204, before.fps)
     assert same_poses(expected, after) < TOLERANCE
@@ -124,7 +112,7 @@ def test_fbx_passes_keep_the_keys(characters):
     for path in passes:
         (name, arm), = inspect(tmp, path)["armatures"].items()
         assert (name, arm["frame_range"]) == ("clip", [1.0, 407.0]), path.name
-    last = load_motion_bpy(tmp, passes[-1])
+    last = load_motion_bpy(passes[-1])
     assert last.n_frames == 407 and same_poses(load_motion(tmp / "jump.bvh"), last) < TOLERANCE
 
 
@@ -134,7 +122,7 @@ def test_physics_writes_fbx(characters):
     tmp = characters
     retime(tmp, "physics", tmp / "jump.fbx", "-o", tmp / "phys.fbx", "--scale", "0.5", "--warp", tmp / "phys.csv", "--quiet")
     retime(tmp, "physics", tmp / "jump.fbx", "-o", tmp / "phys.bvh", "--scale", "0.5", "--quiet")
-    assert same_poses(load_motion(tmp / "phys.bvh"), load_motion_bpy(tmp, tmp / "phys.fbx")) < TOLERANCE
+    assert same_poses(load_motion(tmp / "phys.bvh"), load_motion_bpy(tmp / "phys.fbx")) < TOLERANCE
 
 
 def test_not_an_fbx_is_one_line(characters):

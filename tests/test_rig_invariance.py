@@ -469,3 +469,69 @@ def test_a_body_lying_on_its_back_is_read_y_up(tmp_path):
     assert m.skeleton.up == "+y" and m.skeleton.frame.unit == "cm"
     for name in FLOOR_VARIANTS:
         _assert_frame_kept(m, name, tmp_path)
+
+
+def _crouch_with_still_hands(seconds=2.0, fps=30.0):
+    """(positions (F, J, 3), parents, the two ankles): a body standing on its feet (y up, metres) and
+    crouching 10 cm, its arms out and down sideways to hands that stay still in the world, 16 finger joints
+    each (a Rigify rig keyed on its torso and feet, its IK hands left unkeyed): the fingers are the lowest
+    points along +z and -z, still, under the centre of mass, and outnumber the resting toes."""
+    t = np.arange(int(seconds * fps)) / fps
+    hips = np.zeros((len(t), 3))
+    hips[:, 1] = 0.95 - 0.05 * (1 - np.cos(2 * np.pi * 0.5 * t))
+    joints = [(-1, hips), (0, hips + [0, 0.3, 0]), (1, hips + [0, 0.6, 0])]  # hips, chest, head
+    ankles = []
+    for side in (1.0, -1.0):
+        hip = hips + [0, -0.05, 0.1 * side]
+        ankle = np.broadcast_to([0.0, 0.08, 0.1 * side], hip.shape)
+        knee = 0.5 * (hip + ankle) + [0.1, 0, 0]
+        k = len(joints)
+        joints += [(0, hip), (k, knee), (k + 1, ankle), (k + 2, ankle + [0.15, -0.08, 0])]
+        ankles.append(k + 2)
+        shoulder = hips + [0, 0.35, 0.2 * side]
+        hand = np.broadcast_to([-0.05, 0.95, 0.75 * side], hip.shape)  # a little behind the body, as arms hang
+        k = len(joints)
+        joints += [(1, shoulder), (k, 0.5 * (shoulder + hand)), (k + 1, hand)]
+        for finger in range(4):
+            for bone in range(4):
+                joints.append((k + 2 if bone == 0 else len(joints) - 1,
+                               hand + [0.02 * finger - 0.1, -0.02 * bone - 0.01, 0.03 * (bone + 1) * side]))
+    return np.stack([p for _, p in joints], axis=1), np.array([p for p, _ in joints]), ankles, fps
+
+
+def test_a_body_standing_on_its_feet_with_still_hands_is_y_up():
+    """The keyed Rigify clip (torso and IK feet keyed, IK hands left still) was read +x up: its still
+    fingers, the lowest points sideways, outnumber its resting toes and overruled the head above the
+    feet. A floor that never holds a foot does not overrule one the feet stand on; the feet are what
+    tells it (without them, the old reading comes back)."""
+    from retime.motion.frame import up_from_contacts
+
+    positions, parents, ankles, fps = _crouch_with_still_hands()
+    prior = ("+y", 1.0)
+    lift = np.median(positions[:, 2] - positions[:, ankles].mean(axis=1), axis=0)
+    assert up_from_contacts(positions, parents, fps, prior[0], lift, prior[1])[0][1] == "z"  # the old reading: a hand floor
+    assert up_from_contacts(positions, parents, fps, prior[0], lift, prior[1], ankles) == prior
+    turned = positions[..., [1, 2, 0]]  # y up -> z up: the rule follows the axes
+    lift = np.median(turned[:, 2] - turned[:, ankles].mean(axis=1), axis=0)
+    assert up_from_contacts(turned, parents, fps, "+z", lift, 1.0, ankles) == ("+z", 1.0)
+
+
+def test_rigify_spine_names_give_the_head(jump, tmp_path):
+    """Rigify names its neck and head as spine joints (DEF-spine.004 to .006, above the chest DEF-spine.003
+    that carries the shoulders): no head was found, so the standing height, one of the two unit cues,
+    was measured from the root ("root 0.13 m above the feet" on the keyed Rigify clip). The top of the
+    spine above the arms' branch is the head: the same head height as the CMU names give."""
+    import dataclasses
+
+    original = _written(jump, tmp_path, "orig")
+    rigify = V.rename(original, "rigify")
+    spine = {"DEF-Root0": "DEF-spine", "DEF-Lowerback11": "DEF-spine.001", "DEF-Upperback12": "DEF-spine.002",
+             "DEF-Thorax13": "DEF-spine.003", "DEF-neck": "DEF-spine.004", "DEF-neck1": "DEF-spine.005",
+             "DEF-head": "DEF-spine.006"}
+    assert set(spine) <= set(rigify.skeleton.names), rigify.skeleton.names
+    sk = dataclasses.replace(rigify.skeleton, names=[spine.get(n, n) for n in rigify.skeleton.names])
+    renamed = _written(rigify.replace(skeleton=sk), tmp_path, "rigify_spine")
+    frame = renamed.skeleton.frame
+    assert renamed.skeleton.names[frame.limbs.head] == "DEF-spine.006"
+    assert frame.height_m == pytest.approx(original.skeleton.frame.height_m, rel=1e-6)
+    assert (frame.unit, frame.unit_confidence) == (original.skeleton.frame.unit, original.skeleton.frame.unit_confidence)

@@ -93,8 +93,7 @@ def export_bvh(context, obj, action, slot, frames, fps, path):
         adt.use_nla = False
         if action is not adt.action:
             armature.assign_action(obj, action, slot)
-        hierarchy, poses, world = armature.sample_pose(context, obj, range(frames[0], frames[1] + 1),
-                                                       deform_only=armature.drives_deform(obj))
+        hierarchy, poses, world = armature.sample_pose(context, obj, range(frames[0], frames[1] + 1))
         text = armature.BvhPose(hierarchy, poses, world).text(fps)
     except armature.ArmatureError as e:
         raise RetimeAddonError(str(e)) from None

@@ -16,6 +16,50 @@ def install_addon(zip_path):
     return next(a.module for a in bpy.context.preferences.addons if a.module.endswith(".retime"))
 
 
+def open_rig(blend, name="rig"):
+    """Open ``blend`` (the add-on stays installed: it lives in the preferences) and make the armature
+    ``name`` the active and only selected object."""
+    bpy.ops.wm.open_mainfile(filepath=blend, load_ui=False)
+    rig = bpy.data.objects[name]
+    for obj in bpy.context.scene.objects:
+        obj.select_set(obj is rig)
+    bpy.context.view_layer.objects.active = rig
+    return rig
+
+
+def skin_boxes(arm, bones):
+    """A mesh ("Body") of one box per bone of ``bones`` (names; those longer than 0.1 mm), weighted to that
+    bone, deformed by ``arm`` through an Armature modifier, with a material; returns the mesh object."""
+    verts, faces, groups = [], [], []
+    for bone in (arm.data.bones[n] for n in bones):
+        if bone.length < 1e-4:
+            continue
+        head, tail = bone.head_local, bone.tail_local
+        axis = tail - head
+        r = 0.1 * bone.length
+        base = len(verts)
+        side = axis.orthogonal().normalized() * r
+        up = axis.normalized().cross(side)
+        for p in (head, tail):
+            for a, b in ((1, 1), (-1, 1), (-1, -1), (1, -1)):
+                verts.append(p + a * side + b * up)
+        faces += [tuple(base + i for i in f) for f in ((0, 1, 2, 3), (4, 7, 6, 5), (0, 4, 5, 1), (1, 5, 6, 2),
+                                                       (2, 6, 7, 3), (3, 7, 4, 0))]
+        groups.append((bone.name, list(range(base, base + 8))))
+    mesh = bpy.data.meshes.new("Body")
+    mesh.from_pydata([tuple(v) for v in verts], [], [tuple(f) for f in faces])
+    body = bpy.data.objects.new("Body", mesh)
+    bpy.context.scene.collection.objects.link(body)
+    for name, idx in groups:
+        body.vertex_groups.new(name=name).add(idx, 1.0, "REPLACE")
+    body.parent = arm
+    body.modifiers.new("Armature", "ARMATURE").object = arm
+    material = bpy.data.materials.new("Skin")
+    material.diffuse_color = (0.8, 0.3, 0.2, 1.0)
+    mesh.materials.append(material)
+    return body
+
+
 def world_heads(arm, names, frames):
     """(frames, bones, 3): the world heads of the bones ``names`` of ``arm`` on each scene frame, as evaluated."""
     out = np.empty((len(frames), len(names), 3))

@@ -1,6 +1,7 @@
-"""Runs inside the bpy venv: a Rigify rig generated from the human meta-rig (Blender ships Rigify), its
-controls keyed (the torso crouching and turning, the IK feet shuffling, the chest and the head turning), then
-Check and Retime on it. ``python rigify_driver.py ADDON.zip FOLDER RESULTS.json``
+"""Runs inside the bpy venv: a Rigify rig generated from the human meta-rig (RIGIFY.blend, made by
+make_rigify.py), its controls keyed (the torso crouching and turning, the IK feet shuffling, the chest and
+the head turning), then Check and Retime on it. ``python rigify_driver.py ADDON.zip RIGIFY.blend FOLDER
+RESULTS.json``
 
 Rigify parents its deform (DEF) bones to non-deform ORG bones, so most have no deform ancestor. FOLDER gets
 the DEF bones' world heads on every source frame (source.npz) and on every output frame of linear bakes at
@@ -12,19 +13,10 @@ import sys
 import bpy
 import numpy as np
 
-from _addon_script import bake_and_record, finish, install_addon, world_heads
+from _addon_script import bake_and_record, finish, install_addon, open_rig, world_heads
 
 FRAMES = (1, 41)
 SCALES = {"rigify_linear": 0.5, "rigify_between": 0.7}  # output frames on source frames; between them
-
-
-def generated_rig():
-    import addon_utils  # importable once bpy is
-
-    addon_utils.enable("rigify", default_set=True)
-    bpy.ops.object.armature_human_metarig_add()
-    bpy.ops.pose.rigify_generate()
-    return bpy.context.active_object
 
 
 def key_controls(rig):
@@ -48,12 +40,12 @@ def key_controls(rig):
     scene.render.fps, scene.render.fps_base = 30, 1.0
 
 
-def main(zip_path, folder, results_path):
+def main(zip_path, blend, folder, results_path):
     package = install_addon(zip_path)
     from importlib import import_module
 
     armature = import_module(package + ".armature")
-    rig = generated_rig()
+    rig = open_rig(blend)
     key_controls(rig)
     names = [b.name for b in rig.data.bones if b.use_deform]
     original, slot = rig.animation_data.action, getattr(rig.animation_data, "action_slot", None)
@@ -71,4 +63,4 @@ def main(zip_path, folder, results_path):
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:4])
+    main(*sys.argv[1:5])

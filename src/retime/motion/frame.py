@@ -7,7 +7,9 @@
   to :data:`REST_JOINTS`); when the scores leave it open (a clip at rest, nothing moving) the axis
   along which the head (or the root) lies above the feet in most frames decides (:func:`detect_up`).
   Confidence: the share of frames whose head is above the feet along it, or, when the contacts
-  overrule that axis, the share of frames at rest on the new one.
+  overrule that axis, the share of frames at rest on the new one. A floor that never holds a foot
+  does not overrule a head-above-feet axis the feet stand on (a jump whose still IK hands are the
+  lowest points sideways).
 * **Four limbs.** A skeleton named like a biped (3ds Max Biped animals) whose hands rest on the floor
   in at least :data:`FOUR_LIMB_SHARE` of the frames its feet do bears weight on four limbs: not a
   biped.
@@ -147,6 +149,10 @@ MIN_REST_SURE = 0.75  # ... is overruled only by an axis at rest in this share: 
 # root-locked export hangs and its swinging hand rests on a 'wall' at its turning points (CMU walks
 # and a jump, locked: 33-54 %)
 FOUR_LIMB_SHARE = 0.5
+FEET_STAND = 0.25  # feet resting on the head-above-feet floor in this share of frames: the body stands there ...
+FEET_ELSEWHERE = 0.05  # ... and a floor that holds a foot in fewer frames than this is no floor of its: a still
+# hand (a Rigify IK hand left unkeyed, its fingers the lowest points sideways) or a prop the body touches.
+# Kneeling, lying and four-legged bodies have their feet on their floor too (insteps, heels, hind feet).
 
 
 def _mass_centre(positions, parents):
@@ -194,8 +200,14 @@ def rest_on(positions, parents, fps, up: str) -> Rest:
     return Rest(on, balanced, (float(np.percentile(lowest, 80)) - floor) / size)
 
 
+def _feet_rest(rest: Rest, parents, feet) -> float:
+    """The share of frames in which a foot (or a joint below it: a toe) rests on the floor."""
+    below = sorted({k for f in feet for k in descendants(parents, f)})
+    return float(rest.on_floor[:, below].any(axis=1).mean()) if below else 0.0
+
+
 def up_from_contacts(positions, parents, fps, prior: str | None = None, head_lift=None,
-                     prior_confidence: float = 0.0) -> tuple[str, float]:
+                     prior_confidence: float = 0.0, feet=()) -> tuple[str, float]:
     """The signed axis along which the body rests on the floor best (see the module docstring), and
     its confidence: the share of frames at rest on it, or ``prior_confidence`` (the share of frames
     whose head is above the feet) when ``prior`` stands. ``prior`` (the head-above-feet axis) stands unless another
@@ -203,7 +215,9 @@ def up_from_contacts(positions, parents, fps, prior: str | None = None, head_lif
     the feet in :data:`HEAD_ABOVE_ALWAYS` of them) and scores :data:`OVERRULE` times as much (a
     clip at rest throughout, against a wall or on a floor, looks alike). The sign of a new axis is
     the side the head is on (``head_lift``, the median head-minus-feet vector), when it is clear;
-    an upside-down reading is never taken from the contacts alone (a still head rests like a foot)."""
+    an upside-down reading is never taken from the contacts alone (a still head rests like a foot).
+    When the ``feet`` (joint indices) rest on the prior's floor in :data:`FEET_STAND` of the frames, an
+    axis whose floor holds a foot in fewer than :data:`FEET_ELSEWHERE` of them does not overrule it."""
     rests = {sign + axis: rest_on(positions, parents, fps, sign + axis) for axis in "xyz" for sign in "+-"}
     scores = {up: r.score() for up, r in rests.items()}
     if prior is None:
@@ -217,8 +231,10 @@ def up_from_contacts(positions, parents, fps, prior: str | None = None, head_lif
         return ("+" if lift[k] > 0 else "-") + up[1] if abs(lift[k]) > BALANCE_MARGIN * size else up
 
     need = MIN_REST_SURE if prior_confidence >= HEAD_ABOVE_ALWAYS else MIN_REST
+    standing = len(feet) > 0 and _feet_rest(rests[prior], parents, feet) >= FEET_STAND
     floors = {signed(up) for up in rests if up[1] != prior[1] and scores[up] > 0
-              and scores[up] >= OVERRULE * scores[prior] and rests[up].balanced.mean() >= need}
+              and scores[up] >= OVERRULE * scores[prior] and rests[up].balanced.mean() >= need
+              and not (standing and _feet_rest(rests[up], parents, feet) < FEET_ELSEWHERE)}
     if not floors:
         return prior, float(prior_confidence)
     # floors alike (a body at rest lies on its side as well as it stands): the one the head is highest above
@@ -314,7 +330,7 @@ def detect_frame(motion, up: str | None = None, units=None, declared_units: floa
         where = {j: k for k, j in enumerate(body)}
         body_parents = np.array([where.get(int(sk.parents[j]), -1) for j in body])
         up, up_conf = up_from_contacts(positions[:, body], body_parents, motion.fps / _sample_step(motion.n_frames),
-                                       prior, lift, prior_conf)
+                                       prior, lift, prior_conf, [where[f] for f in (feet or ()) if f in where])
     else:
         up = parse_up(up)
     try:

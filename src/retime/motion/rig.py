@@ -295,7 +295,29 @@ def limbs_by_name(skeleton) -> Limbs | None:
         if head is not None:  # the top of the neck chain
             while len(kids[head]) == 1 and part_of(skeleton.names[kids[head][0]]) in ("neck", "head", None):
                 head = kids[head][0]
+    if head is None and len(arms) == 2:
+        head = _spine_top(skeleton, kids, arms)
     return Limbs(legs=legs, arms=arms, head=head, how="names")
+
+
+def _spine_top(skeleton, kids, arms):
+    """The head of a rig that names its neck and head as spine joints (Rigify: DEF-spine.004 to .006 above
+    the chest, DEF-spine.003, that carries the shoulders): the top of the row of joints named as the arms'
+    branch is (the same words, numbers aside) going on above it, or None when the row ends there."""
+    right = _ancestors(skeleton.parents, arms["right"][0])
+    branch = next((a for a in _ancestors(skeleton.parents, arms["left"][0])  # the first unsided one (Rigify's
+                   if a in right and side_and_part(skeleton.names[a])[0] is None), None)  # right shoulder may hang
+    # from its left one: joined by geometry, in the add-on and the FBX/glTF bridge)
+    if branch is None:
+        return None
+    stem = side_and_part(skeleton.names[branch])
+    top = branch
+    while True:
+        row = [c for c in kids[top] if side_and_part(skeleton.names[c]) == stem]
+        if len(row) != 1:
+            break
+        top = row[0]
+    return top if top != branch else None
 
 
 # ---------------------------------------------------------------------------------------------

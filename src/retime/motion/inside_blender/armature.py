@@ -30,13 +30,15 @@ def bvh_name(name: str) -> str:
 
 
 class Hierarchy:
-    """An armature's bones in depth-first order (parents before children) with their rest matrices."""
+    """An armature's bones in depth-first order (parents before children) with their rest matrices, and
+    for writing poses back, every bone of the armature with the kept bone it moves with (``leaders``)."""
 
-    def __init__(self, obj, deform_only=False):
-        """``deform_only``: the deform bones alone, each under its nearest deform ancestor (a rig whose
-        controls drive the deform skeleton through constraints: Rigify's DEF bones); a deform bone with no
-        deform ancestor but the topmost hangs from the deform bone nearest its head (:func:`_adopt`)."""
-        keep = (lambda b: b.use_deform) if deform_only else (lambda b: True)
+    def __init__(self, obj, keep_names=None):
+        """Every bone, in one tree or refused; ``keep_names``: those bones alone (:func:`skeleton`: the
+        deform skeleton), each under its nearest kept ancestor, and a kept bone with none but the topmost
+        hanging from the kept bone nearest its head (:func:`_adopt`)."""
+        def keep(b):
+            return keep_names is None or b.name in keep_names
 
         def parent(b):
             p = b.parent
@@ -51,11 +53,11 @@ class Hierarchy:
             return out
 
         roots = [b for b in obj.data.bones if keep(b) and parent(b) is None]
-        what = "deform bones" if deform_only else "bones"
+        what = "bones" if keep_names is None else "deform bones"
         if not roots:
             raise ArmatureError(f"armature {obj.name!r} has no {what}")
         adopted = {}  # bone name -> the deform bone it hangs from by geometry
-        if deform_only and len(roots) > 1:
+        if keep_names is not None and len(roots) > 1:
             roots, adopted = _adopt(roots, [b for b in obj.data.bones if keep(b)], parent)
         if len(roots) > 1:
             names = ", ".join(repr(b.name) for b in roots[:4]) + (", ..." if len(roots) > 4 else "")
@@ -75,10 +77,31 @@ class Hierarchy:
         index = {n: i for i, n in enumerate(self.names)}
         ups = [adopted.get(b.name) or parent(b) for b in order]
         self.parents = np.array([index[u.name] if u is not None else -1 for u in ups], dtype=int)
+        self.leaders = _leaders(obj.data.bones, index)
         self.bvh_names = _unique([bvh_name(n) for n in self.names])
         self.rest = np.array([np.array(b.matrix_local, dtype=float) for b in order])  # (J, 4, 4) armature space
         self.tails = np.array([np.array(b.tail_local, dtype=float) for b in order])
         self.leaves = [j for j, b in enumerate(order) if not kids[b.name]]
+
+
+def _leaders(bones, index):
+    """Every bone of the armature (its name, its parent's name or None, its rest matrix) with the kept bone
+    it moves with rigidly when poses are written back (its index in ``index``, the kept bones', or -1: at
+    rest): itself when kept; else the kept bone nearest below it (a Rigify export's ORG and MCH bones above
+    the DEF bones, so that a DEF bone connected to one is carried along), else the nearest kept above it."""
+    out = []
+    for b in bones:
+        lead = index.get(b.name)
+        frontier = list(b.children)
+        while lead is None and frontier:  # breadth first: the nearest kept descendant, Blender's order on a tie
+            lead = next((index[c.name] for c in frontier if c.name in index), None)
+            frontier = [g for c in frontier for g in c.children]
+        up = b.parent
+        while lead is None and up is not None:
+            lead, up = index.get(up.name), up.parent
+        out.append((b.name, b.parent.name if b.parent else None, np.array(b.matrix_local, dtype=float),
+                    -1 if lead is None else lead))
+    return out
 
 
 def _adopt(roots, bones, parent):
@@ -134,11 +157,45 @@ def drives_deform(obj) -> bool:
     return any(b.use_deform for b in bones) and not all(b.use_deform for b in bones)
 
 
-def sample_pose(context, obj, frames, deform_only=False):
+def skinning_bones(obj) -> set:
+    """The bones of armature ``obj`` that weight a mesh it deforms (an Armature modifier on it)."""
+    import bpy
+
+    names = set()
+    for mesh in bpy.data.objects:
+        if mesh.type != "MESH" or not any(m.type == "ARMATURE" and m.object is obj for m in mesh.modifiers):
+            continue
+        groups = {g.index: g.name for g in mesh.vertex_groups}
+        names.update(groups[g.group] for v in mesh.data.vertices for g in v.groups if g.weight > 0 and g.group in groups)
+    return names & {b.name for b in obj.data.bones}
+
+
+def deform_bones(obj) -> set:
+    """The bones that make the body: the deform bones when the armature has others beside them (a rig built
+    in Blender: :func:`drives_deform`). When every bone is deform, as Blender's FBX and glTF importers mark
+    them: every bone when they form one tree (an ordinary rig, read whole as it is written), else the bones
+    that weight a mesh the armature deforms, when there is one (a game export of a Rigify character holds
+    its DEF bones' non-deform ancestors too: ORG and MCH bones, the torso control, several roots)."""
+    bones = obj.data.bones
+    if drives_deform(obj):
+        return {b.name for b in bones if b.use_deform}
+    if sum(b.parent is None for b in bones) > 1:
+        return skinning_bones(obj) or {b.name for b in bones}
+    return {b.name for b in bones}
+
+
+def skeleton(obj) -> Hierarchy:
+    """The skeleton retime reads from an armature, one rule for the add-on and the FBX/glTF bridge: the
+    :func:`deform_bones`, each under its nearest kept ancestor, several roots joined (the topmost stays the
+    root, each other hangs with its subtree from the bone nearest its head at rest: :func:`_adopt`)."""
+    return Hierarchy(obj, keep_names=deform_bones(obj))
+
+
+def sample_pose(context, obj, frames, hierarchy=None):
     """The evaluated pose (after constraints and drivers) at each scene frame: bone pose matrices in
-    armature space (F, J, 4, 4) and the object's world matrix (F, 4, 4); ``deform_only``: of the deform
-    bones alone (:class:`Hierarchy`). Moves the scene's current frame (the caller restores it)."""
-    hierarchy = Hierarchy(obj, deform_only)
+    armature space (F, J, 4, 4) and the object's world matrix (F, 4, 4), of ``hierarchy``'s bones (default:
+    :func:`skeleton`). Moves the scene's current frame (the caller restores it)."""
+    hierarchy = hierarchy or skeleton(obj)
     poses = np.empty((len(frames), len(hierarchy.names), 4, 4))
     world = np.empty((len(frames), 4, 4))
     scene = context.scene
@@ -153,8 +210,17 @@ def sample_pose(context, obj, frames, deform_only=False):
 
 
 def _rotation(m):
-    """The rotation part of (..., 3, 3) matrices that may carry a uniform scale."""
-    return m / np.linalg.norm(m, axis=-2, keepdims=True)
+    """The rotation nearest (..., 3, 3) matrices that may carry a scale: the polar factor. A bone scaled
+    along some axes (Rigify's squash and stretch) shears the children that inherit its scale in full (as
+    FBX and glTF import them), and normalising their columns gave no rotation: the BVH then put the feet
+    of an imported Rigify rig 2 cm off."""
+    u, _, vt = np.linalg.svd(m)
+    r = u @ vt
+    flip = np.linalg.det(r) < 0  # a mirroring scale: keep a rotation
+    if np.any(flip):
+        u[flip, :, -1] *= -1
+        r = u @ vt
+    return r
 
 
 def _uniform_scale(m3):
@@ -253,9 +319,11 @@ def quat_xyzw_to_matrix(q):
 
 
 def bone_bases(hierarchy, world0, rotations, translations):
-    """The bones' local (basis) matrices (F, J, 4, 4) that make the armature, its object at ``world0``,
-    play BVH-convention poses: local rotations as quaternions (F, J, 4; x y z w) and translations (F, J, 3;
-    the offset or the position channels) of the joints in ``hierarchy`` order. The inverse of BvhPose."""
+    """The local (basis) matrices {bone name: (F, 4, 4)} of every bone of the armature that make it, its
+    object at ``world0``, play BVH-convention poses: local rotations as quaternions (F, J, 4; x y z w) and
+    translations (F, J, 3; the offset or the position channels) of the joints in ``hierarchy`` order. The
+    inverse of BvhPose for the kept bones; each other bone moves rigidly with its leader
+    (:func:`_leaders`)."""
     h, c = hierarchy, TO_Y_UP
     local = quat_xyzw_to_matrix(np.asarray(rotations, dtype=float))
     translations = np.asarray(translations, dtype=float)
@@ -276,11 +344,14 @@ def bone_bases(hierarchy, world0, rotations, translations):
     pose[..., :3, :3] = g_arm @ _rotation(h.rest[:, :3, :3])
     pose[..., :3, 3] = heads_arm
     pose[..., 3, 3] = 1.0
-    rest_inv = np.linalg.inv(h.rest)
-    basis = np.empty_like(pose)
-    for j, p in enumerate(h.parents):
-        parent = pose[:, p] @ rest_inv[p] @ h.rest[j] if p >= 0 else np.broadcast_to(h.rest[j], pose[:, j].shape)
-        basis[:, j] = np.linalg.inv(parent) @ pose[:, j]
+    lead_from_rest = pose @ np.linalg.inv(h.rest)  # (F, J, 4, 4): a kept bone's motion from its rest
+    rest = {name: m for name, _, m, _ in h.leaders}
+    posed = {name: lead_from_rest[:, k] @ m if k >= 0 else np.broadcast_to(m, (n_frames, 4, 4))
+             for name, _, m, k in h.leaders}
+    basis = {}
+    for name, parent, m, _ in h.leaders:  # relative to where the parent puts the bone at rest
+        under = posed[parent] @ np.linalg.inv(rest[parent]) @ m if parent is not None else m
+        basis[name] = np.linalg.inv(under) @ posed[name]
     return basis
 
 

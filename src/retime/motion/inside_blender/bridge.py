@@ -167,19 +167,19 @@ def put_poses(context, obj, poses, start):
     """Replace the armature's action by a new one playing ``poses`` from frame ``start``; return the frame count."""
     import bpy
 
-    h = armature.Hierarchy(obj)
+    h = armature.skeleton(obj)  # the bones read (armature.sample_pose): the deform skeleton, one hierarchy
     names = [str(n) for n in poses["names"]]
     if names != h.bvh_names:
         raise BridgeError(f"the armature {obj.name!r} has other bones than the motion retime wrote")
     context.scene.frame_set(start)
     world0 = np.array(obj.evaluated_get(context.evaluated_depsgraph_get()).matrix_world)
     basis = armature.bone_bases(h, world0, poses["rotations"], poses["translations"])
-    n_frames = basis.shape[0]
+    n_frames = len(poses["rotations"])
     frames = np.arange(start, start + n_frames, dtype=float)
     old = obj.animation_data.action
     action, slot, fcurves = armature.new_action(obj, old.name)
-    for j, name in enumerate(h.names):
-        loc, quat, scale = armature.decompose(basis[:, j])
+    for name, local in basis.items():  # every bone: those not read move with the bones read
+        loc, quat, scale = armature.decompose(local)
         armature.key_bone(fcurves, obj.pose.bones[name], frames, loc, quat, scale)
     armature.assign_action(obj, action, slot)
     for track in list(obj.animation_data.nla_tracks):  # other takes of the file: the retimed one is exported alone
