@@ -72,6 +72,7 @@ class BakedArrays(NamedTuple):
     delta: float  # 0: alpha d^2 (Eq. 14); > 0: alpha (sqrt(d^2 + delta^2) - delta) (exact penalty)
     gamma: float  # weight of the speed regularizer gamma (p' + 1/p' - 2) per source second
     blend: float  # half-width (body weights, the frame's metric) of the smoothing across fan rays; 0: none
+    ray: np.ndarray  # (P,) angle of each vertex's ray from its frame's fan centre, in the metric
 
 
 @dataclass
@@ -234,8 +235,12 @@ def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_f
     C = np.ascontiguousarray
     if penalty not in ("l1", "l2"):
         raise RetimeError(f"unknown penalty {penalty!r} (use 'l2' or 'l1')")
+    # each vertex's ray angle from its frame's fan centre, in the metric (a uniform rescaling, as soften's,
+    # keeps it): the smoothing across rays reads these instead of an arctan2 per ray and sample
+    ray = np.arctan2(V[:, 1] - np.repeat(Fr[:, 3], cnt), V[:, 0] - np.repeat(Fr[:, 2], cnt))
     arrays = BakedArrays(poff, C(V[:, 0]), C(V[:, 1]), C(Fr[:, 2:]), C(Fr[:, :2]), mode, C(V[:, 2:]), s, om, fi, fw,
-                         float(alpha), 0.0 if penalty == "l2" else float(delta), float(gamma), float(fan_blend))
+                         float(alpha), 0.0 if penalty == "l2" else float(delta), float(gamma), float(fan_blend),
+                         C(ray))
     out = BakedObjective(np.asarray(regions.times, float), arrays, float(beta), float(tau_scale))
     out.seconds = time.perf_counter() - t0
     return out
@@ -462,8 +467,8 @@ def _frame_parts(i, u0, v0, ob, cache):
                         break
     kw = p0 + k if md == 0 else p0
     g, gu, gv = _wedge_quadratic(wc, kw, u0, v0)
-    if md == 0 and not at_centre and ob.blend > 0.0:
-        g, gu, gv = _fan_blend(p0, nv, k, u, v, u0, v0, su, sv, cu, cv, px, py, wc, ob.blend, g, gu, gv)
+    if md == 0 and not at_centre and ob.blend > 0.0 and _near_a_ray(p0, nv, k, u, v, cu, cv, px, py, ob.blend):
+        g, gu, gv = _fan_blend(p0, nv, k, u, v, u0, v0, su, sv, cu, cv, ob.ray, wc, ob.blend, g, gu, gv)
     du, dv = u - qx, v - qy
     return g, gu, gv, du, dv, du * du + dv * dv, su, sv
 
@@ -474,11 +479,6 @@ def _wedge_quadratic(wc, kw, u0, v0):
     w0, w1, w2, w3, w4, w5 = wc[kw, 0], wc[kw, 1], wc[kw, 2], wc[kw, 3], wc[kw, 4], wc[kw, 5]
     g = w0 * v0 * v0 + w1 * u0 * u0 + w2 * u0 * v0 + w3 * v0 + w4 * u0 + w5
     return g, 2.0 * w1 * u0 + w2 * v0 + w4, 2.0 * w0 * v0 + w2 * u0 + w3
-
-
-@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
-def _ray_angle(px, py, p, cu, cv):
-    return math.atan2(py[p] - cv, px[p] - cu)
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", inline="always")
@@ -501,7 +501,23 @@ def _smooth_step(x):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", inline="always")
-def _fan_blend(p0, nv, k, u, v, u0, v0, su, sv, cu, cv, px, py, wc, eps, g, gu, gv):
+def _near_a_ray(p0, nv, k, u, v, cu, cv, px, py, eps):
+    """Is (u, v) within the smoothing band of either ray of wedge k? Without trigonometry (the usual
+    answer is no): the angle from a ray is below the band iff it points the same way and
+    cross < tan(band) dot."""
+    dx, dy = u - cu, v - cv
+    r = math.sqrt(dx * dx + dy * dy)
+    tb = math.tan(eps * FAN_BLEND_ANGLE / (eps + r * FAN_BLEND_ANGLE))
+    j = k + 1 if k + 1 < nv else 0
+    r0x, r0y = px[p0 + k] - cu, py[p0 + k] - cv
+    r1x, r1y = px[p0 + j] - cu, py[p0 + j] - cv
+    dot0 = r0x * dx + r0y * dy
+    dot1 = r1x * dx + r1y * dy
+    return (dot0 > 0.0 and r0x * dy - r0y * dx < tb * dot0) or (dot1 > 0.0 and dx * r1y - dy * r1x < tb * dot1)
+
+
+@njit(cache=True, fastmath=True, error_model="numpy")
+def _fan_blend(p0, nv, k, u, v, u0, v0, su, sv, cu, cv, ray, wc, eps, g, gu, gv):
     """The torque term mollified in the fan's angle (see :data:`FAN_BLEND`): each wedge q's
     quadratic weighted by psi_q = S((phi - theta_q) / b) - S((phi - theta_{q+1}) / b), its indicator
     over the angle phi smoothed by a C2 kernel of half-width b (a partition of unity: the weights sum
@@ -514,11 +530,11 @@ def _fan_blend(p0, nv, k, u, v, u0, v0, su, sv, cu, cv, px, py, wc, eps, g, gu, 
     r = math.sqrt(r2)
     B = FAN_BLEND_ANGLE
     band = eps * B / (eps + r * B)
-    phi = math.atan2(dy, dx)
     j = k + 1 if k + 1 < nv else 0
-    th_k = _ray_angle(px, py, p0 + k, cu, cv)
+    phi = math.atan2(dy, dx)
+    th_k = ray[p0 + k]
     lo = _angle_between(th_k, phi)  # phi - theta_k >= 0
-    hi = lo - _angle_between(th_k, _ray_angle(px, py, p0 + j, cu, cv))  # phi - theta_{k+1} <= 0
+    hi = lo - _angle_between(th_k, ray[p0 + j])  # phi - theta_{k+1} <= 0
     if lo >= band and hi <= -band:
         return g, gu, gv  # no ray within the band: the wedge's own quadratic
     dphi_u, dphi_v = -dy * su / r2, dx * sv / r2
@@ -534,12 +550,12 @@ def _fan_blend(p0, nv, k, u, v, u0, v0, su, sv, cu, cv, px, py, wc, eps, g, gu, 
                 if direction == 0:  # the wedge below: its upper ray is q's lower one
                     qn = q - 1 if q > 0 else nv - 1
                     d_hi = d_lo
-                    d_lo = d_lo + _angle_between(_ray_angle(px, py, p0 + qn, cu, cv), _ray_angle(px, py, p0 + q, cu, cv))
+                    d_lo = d_lo + _angle_between(ray[p0 + qn], ray[p0 + q])
                 else:
                     qn = q + 1 if q + 1 < nv else 0
                     qnn = qn + 1 if qn + 1 < nv else 0
                     d_lo = d_hi
-                    d_hi = d_hi - _angle_between(_ray_angle(px, py, p0 + qn, cu, cv), _ray_angle(px, py, p0 + qnn, cu, cv))
+                    d_hi = d_hi - _angle_between(ray[p0 + qn], ray[p0 + qnn])
                 q = qn
                 if (direction == 0 and d_hi >= band) or (direction == 1 and d_lo <= -band):
                     break
