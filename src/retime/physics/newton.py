@@ -8,18 +8,24 @@ optimizer's w, each c is a normalized cumulative sum of all of them, so the same
 
 * **Hessian:** central differences of the analytic gradient with graph colouring: the coefficients
   ``k = r (mod 7)`` are stepped together (two columns of one colour are at least 7 apart, so no
-  sample reads both and every gradient entry changes by one of them only), T alone; 2 x 8
-  gradients per Hessian whatever the clip's length.
-* **Step:** damped Newton (Levenberg-Marquardt: H + lambda diag(H), Cholesky of the band by
-  :func:`scipy.linalg.cholesky_banded`, the T column by its Schur complement), the damping raised
-  while a step does not give the decrease its model predicts and lowered when it does, which also
-  handles an indefinite H (the fan wedges make the torque term piecewise quadratic, so H jumps across
-  the wedge rays).
+  sample reads both and every gradient entry changes by one of them only), T alone; 2 x 7 (2 x 8
+  with a free duration) gradients per Hessian whatever the clip's length.
+* **Step:** damped Newton (Levenberg-Marquardt: H + lambda (|diag H| + its mean), Cholesky of the
+  band by :func:`scipy.linalg.cholesky_banded`, the T column by its Schur complement), the damping
+  raised while H + lambda D is not positive definite or a step does not give a quarter of the
+  decrease its model predicts, and lowered after a step that does. The objective is stiff (the exact
+  penalty's curvature alpha / delta at a region's boundary) and not convex, so the damping does the
+  globalization; the polish starts from L-BFGS's answer, near a minimum.
+* **Stop:** converged when the (nearly undamped) step's predicted gain is below 1e-11 of the
+  objective, or ten steps together gained less than 1e-10 of it (creeping along a direction of
+  almost no curvature); :func:`.optimize.solve` also asks the KKT residual.
 * **Bounds** (``w_min <= w <= w_max``: each increment c_{k+1} - c_k within w d_k T) by step
   truncation: a step that would leave them is shortened to stay inside (fraction to the boundary).
   A step that a bound blocks entirely ends the polish ("a speed bound blocks the step").
 * **Keytimes** p(t*) = s* by the augmented Lagrangian, as in :mod:`.optimize`: their residuals
   read four coefficients (and T), so the penalty keeps the band.
+* **The torque term's kinks** at the fan's rays are mollified in the objective itself
+  (:data:`.objective.FAN_BLEND`); without that neither L-BFGS nor Newton converged.
 * **The l1 penalty's kink** is the smooth equivalent the objective already uses,
   ``alpha (sqrt(d^2 + delta^2) - delta)`` with ``delta`` = 1e-3 body weights of residual force
   (:mod:`.objective`): quadratic within a thousandth of a body weight of the region, linear beyond;
@@ -76,9 +82,6 @@ class BandedCoordinates:
         c, T = self.coefficients(z, c_template)
         return np.diff(c) / (self.spline.d * T)
 
-    def speeds(self, z, c_template):
-        """w of z (the bounds are on these)."""
-        return self.to_w(z, c_template)
 
 
 def _keytime_terms(problem, c, T, mu, rho):
@@ -89,7 +92,6 @@ def _keytime_terms(problem, c, T, mu, rho):
     val = 0.0
     gc = np.zeros(len(c))
     gT = 0.0
-    h_all = []
     for j, (s_star, t_star) in enumerate(problem.keytimes):
         tau = min(max(t_star / T, 0.0), 1.0)
         Nb, dN = _basis_at(sp, tau)
@@ -99,8 +101,7 @@ def _keytime_terms(problem, c, T, mu, rho):
         val += mu[j] * h + 0.5 * rho * h * h
         gc += lam * Nb
         gT += lam * dh_dT
-        h_all.append(h)
-    return val, gc, gT, np.array(h_all)
+    return val, gc, gT
 
 
 class BandedObjective:
@@ -119,7 +120,7 @@ class BandedObjective:
         self.evaluations += 1
         val, gc, gT = evaluate_c(pr.obj, pr.spline, c, T, grad=True, workspace=pr.workspace)
         if pr.n_eq:
-            kv, kc, kT, _ = _keytime_terms(pr, c, T, self.mu, self.rho)
+            kv, kc, kT = _keytime_terms(pr, c, T, self.mu, self.rho)
             val += kv
             gc = gc + kc
             gT += kT
@@ -192,7 +193,7 @@ def _feasible_fraction(coords, z, dz, c0, w_min, w_max):
     """The largest step fraction in (0, 1] (halving) that keeps every speed within the bounds."""
     for k in range(30):
         t = 0.5 ** k
-        w = coords.speeds(z + t * dz, c0)
+        w = coords.to_w(z + t * dz, c0)  # the bounds are on these
         if np.all(w >= w_min) and np.all(w <= w_max) and np.all(np.isfinite(w)):
             return t
     return 0.0
