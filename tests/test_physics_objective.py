@@ -1,6 +1,7 @@
 """The baked objective (Eq. 14, sec. 3.5-3.6): coefficients, integration and the analytic gradient."""
 from __future__ import annotations
 
+import dataclasses
 import os
 import sys
 
@@ -76,10 +77,11 @@ def test_gradient_with_respect_to_c_and_T(setup):
 
 def test_six_coefficients_reproduce_the_torque_error(setup):
     """g(u, v) from the baked coefficients equals beta |tau_act(u, v) - tau'|^2 / tau_scale^2 with
-    tau from the fan contact model computed directly (no baking)."""
+    tau from the fan contact model computed directly (no baking; without the smoothing across the
+    fan's rays, which the fan model does not have)."""
     pd, rs, target = setup
     beta = 0.7
-    obj = O.bake(pd, rs, target, alpha=1.0, beta=beta, excess=False, metric="plane")
+    obj = O.bake(pd, rs, target, alpha=1.0, beta=beta, excess=False, metric="plane", fan_blend=0.0)
     act = O.actuated_mask(pd)
     rng = np.random.default_rng(2)
     for i in range(0, rs.n_frames, 11):
@@ -213,3 +215,69 @@ def test_long_clip_objective_does_not_depend_on_the_thread_count(setup, monkeypa
     assert single[0] == double[0] and np.array_equal(single[1], double[1])
     assert single[0] == pytest.approx(one_pass[0], rel=1e-12)
     assert np.allclose(single[1], one_pass[1], rtol=1e-10, atol=1e-12 * np.abs(one_pass[1]).max())
+
+
+def _rays(obj, i):
+    """(centre, ray directions as angles) of frame i's fan in the objective's metric."""
+    ob = obj.arrays
+    p0, p1 = ob.poff[i], ob.poff[i + 1]
+    cx, cy = ob.cen[i]
+    return (cx, cy), np.arctan2(ob.py[p0:p1] - cy, ob.px[p0:p1] - cx)
+
+
+def test_torque_term_is_smooth_across_the_fan_rays():
+    """Issue 24: the fan model's torque term is piecewise quadratic, with kinks at the rays from the
+    centre through the vertices where L-BFGS stalled. Blended over FAN_BLEND, the term and its
+    gradient are continuous across every ray (they jump without the blend), and the gradient
+    inside the band matches finite differences of the term."""
+    from retime.data import bundled_path
+    from retime.motion import load_motion
+    from retime.physics.api import prepare
+
+    _, _, _, obj = prepare(load_motion(bundled_path("16_06.amc")))
+    obj = dataclasses.replace(obj, arrays=obj.arrays._replace(alpha=0.0))  # the torque term alone
+    ob = obj.arrays
+    kinked = checked = inside = 0
+    for i in np.flatnonzero(ob.mode == 0)[::7]:
+        (cx, cy), theta = _rays(obj, i)
+        su, sv = ob.scale[i]
+        for th in theta[::3]:
+            r = 0.5 * O.FAN_BLEND
+            jumps = []
+            for step in (1e-9, 1e-10):  # either side of the ray, this far from it (metric units)
+                (f0, gu0, gv0), (f1, gu1, gv1) = [
+                    O.frame_gradient(obj, i, (cx + r * np.cos(th + side * step / r)) / su,
+                                     (cy + r * np.sin(th + side * step / r)) / sv) for side in (-1, 1)]
+                scale = 1.0 + abs(gu0) + abs(gv0)
+                assert abs(f1 - f0) <= 1e-6 * scale
+                jumps.append(abs(gu1 - gu0) + abs(gv1 - gv0))
+            # continuous: the gradient's difference shrinks with the distance (a kink's does not)
+            assert jumps[1] <= 0.2 * jumps[0] + 1e-7 * scale, (i, th, jumps)
+            checked += 1
+            # inside the band of a ray between wedges wider than 0.02 rad (the band is then a
+            # quarter of the narrower one at this radius): the analytic gradient is the derivative
+            k = int(np.argmin(np.abs(theta - th)))
+            widths = np.mod(np.roll(theta, -1) - theta, 2 * np.pi)
+            if min(widths[k], widths[k - 1]) < 0.02:
+                continue
+            a = th + 1e-3
+            u, v = (cx + r * np.cos(a)) / su, (cy + r * np.sin(a)) / sv
+            f, gu, gv = O.frame_gradient(obj, i, u, v)
+            h = 1e-8
+            fdu = (O.frame_gradient(obj, i, u + h, v)[0] - O.frame_gradient(obj, i, u - h, v)[0]) / (2 * h)
+            fdv = (O.frame_gradient(obj, i, u, v + h)[0] - O.frame_gradient(obj, i, u, v - h)[0]) / (2 * h)
+            assert gu == pytest.approx(fdu, rel=1e-3, abs=1e-7)
+            assert gv == pytest.approx(fdv, rel=1e-3, abs=1e-7)
+            inside += 1
+    assert checked > 50 and inside > 10
+    # without the blend the same rays do kink: the test above would see it
+    raw = dataclasses.replace(obj, arrays=ob._replace(blend=0.0))
+    for i in np.flatnonzero(ob.mode == 0)[::7]:
+        (cx, cy), theta = _rays(raw, i)
+        su, sv = ob.scale[i]
+        for th in theta[::3]:
+            r = 0.5 * O.FAN_BLEND
+            g = [O.frame_gradient(raw, i, (cx + r * np.cos(th + s * 1e-9 / r)) / su,
+                                  (cy + r * np.sin(th + s * 1e-9 / r)) / sv) for s in (-1, 1)]
+            kinked += abs(g[1][1] - g[0][1]) + abs(g[1][2] - g[0][2]) > 1e-4 * (1 + abs(g[0][1]) + abs(g[0][2]))
+    assert kinked > 10

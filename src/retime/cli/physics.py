@@ -5,7 +5,7 @@ import argparse
 import math
 
 from ..physics.constants import MAX_GRAVITY, G
-from ..physics.method import MASS_FACTORS
+from ..physics.method import MASS_FACTORS, Settings
 from ..warp import apply_timing
 from .common import add_duration_args, add_motion_args, add_output_args, check_output, load_input, positive_float, \
     write_outputs
@@ -80,8 +80,9 @@ def register(sub):
     p.add_argument("--contacts", metavar="CONTACTS.csv", help="foot contact states per frame (default: detected)")
     p.add_argument("--friction", type=positive_float, metavar="MU", help="friction coefficient (default: the body's, 0.5)")
     p.add_argument("--torque-scale", type=positive_float, default=1.0, metavar="X", help="scale all torque limits")
-    p.add_argument("--method", choices=("lbfgs", "gd", "slsqp"), default="lbfgs",
-                   help="optimizer: quasi-Newton L-BFGS-B (default), the paper's gradient descent, or SLSQP")
+    p.add_argument("--method", choices=("newton", "lbfgs", "gd", "slsqp"), default=Settings.optimizer,
+                   help="optimizer: L-BFGS polished by Newton's method on the banded problem (default), "
+                        "L-BFGS alone, the paper's gradient descent, or SLSQP")
     p.add_argument("--start", choices=("global", "uniform"), default="global",
                    help="where the optimizer starts: the grid-optimal timing found by dynamic programming "
                         "(default; not with keytimes) or the uniform timing, as in the paper")
@@ -93,7 +94,6 @@ def register(sub):
 
 def run(args):
     from ..method import Request, solve
-    from ..physics.method import Settings
     from ..physics.report import flight_speeds, write_report
 
     check_output(args)

@@ -342,7 +342,7 @@ class PhysicsMethod(Method):
             return
         # a short first run: a drag usually re-converges within it, and then the optimum is the only
         # message (an intermediate one would cost the page a redraw before the answer it waits for)
-        info = self.rs.reconverge(max_iter=self.MAX_ITER, max_seconds=self.QUICK_SECONDS)
+        info = self.rs.reconverge(max_iter=self.MAX_ITER, max_seconds=self.QUICK_SECONDS, quick=True)
         if job.cancelled():
             return
         if info.converged:

@@ -196,7 +196,7 @@ def conformed_gravity(motion, gravity=None) -> np.ndarray:
 
 def physics_warp(motion, duration=None, scale=None, gravity=None, mass_factors=None, objective="match",
                  keytimes=(), body=None, contacts=None, friction=None, torque_scale=1.0, alpha=10.0, beta=0.1,
-                 method="lbfgs", knot_spacing=0.05, samples_per_frame=4, region_options=None, terms=None,
+                 method=None, knot_spacing=0.05, samples_per_frame=4, region_options=None, terms=None,
                  max_iter=3000, progress=False, gamma=0.03, metric="residual", excess=True,
                  penalty="l1", smoothing=DEFAULT_SMOOTHING, delta=1e-3, start="global") -> PhysicsResult:
     """Retime ``motion`` physically; see the module docstring. ``duration`` in seconds (or ``scale``
@@ -206,6 +206,10 @@ def physics_warp(motion, duration=None, scale=None, gravity=None, mass_factors=N
     motion (:func:`conformed_gravity`)."""
     if objective not in ("match", "minimize"):
         raise RetimeError(f"unknown objective {objective!r} (use 'match' or 'minimize')")
+    if method is None:
+        from .method import Settings
+
+        method = Settings.optimizer
     if start not in ("global", "uniform"):
         raise RetimeError(f"unknown start {start!r} (use 'global' or 'uniform')")
     fps = float(motion.fps)

@@ -23,7 +23,7 @@ class Settings:
     contacts: object = None  # a contact CSV path or (F, 4) states (None: detected)
     friction: float | None = None
     torque_scale: float = 1.0
-    optimizer: str = "lbfgs"  # or "gd" (the paper's), "slsqp"
+    optimizer: str = "newton"  # L-BFGS polished by banded Newton; or "lbfgs", "gd" (the paper's), "slsqp"
     start: str = "global"  # or "uniform" (the paper's)
     alpha: float = 10.0
     beta: float = 0.1
@@ -81,5 +81,6 @@ def solve(motion, request: Request) -> Result:
     solver = {"optimizer": info.method, "objective": info.objective, "iterations": info.iterations,
               "evaluations": info.evaluations, "converged": bool(info.converged),
               "constraint_violation": info.constraint_violation, "seconds": info.seconds,
-              "stopped": info.message, "kkt_residual": info.kkt_residual}
+              "stopped": info.message, "kkt_residual": info.kkt_residual,
+              "lbfgs_objective": info.lbfgs_objective, "newton_iterations": info.newton_iterations}
     return Result(result.curve, Report(summary, result.report["frames"]), info=solver, detail=result)

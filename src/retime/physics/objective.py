@@ -49,6 +49,9 @@ from ..errors import RetimeError
 from .polygon import boundary_closest, edge_projection
 
 OBJECTIVES = ("match", "minimize")
+FAN_BLEND = 0.01  # body weights: the torque term's kinks at the fan rays are smoothed over this band,
+# the force model's own uncertainty (regions widen every frame's rows by a pad of 1% of body weight)
+FAN_BLEND_ANGLE = 0.25  # radians: the smoothing's half-width near the centre, where eps / r would grow
 
 
 class BakedArrays(NamedTuple):
@@ -68,6 +71,8 @@ class BakedArrays(NamedTuple):
     alpha: float  # weight of the feasibility term
     delta: float  # 0: alpha d^2 (Eq. 14); > 0: alpha (sqrt(d^2 + delta^2) - delta) (exact penalty)
     gamma: float  # weight of the speed regularizer gamma (p' + 1/p' - 2) per source second
+    blend: float  # half-width (body weights, the frame's metric) of the smoothing across fan rays; 0: none
+    ray: np.ndarray  # (P,) angle of each vertex's ray from its frame's fan centre, in the metric
 
 
 @dataclass
@@ -174,7 +179,7 @@ def residual_scales(pd, body_weight, moment_arm=1.0, floor=0.01, actuated_cost=0
 
 def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_frame=4,
          metric="residual", excess=True, gamma=0.0, u_max=None, v_range=None, penalty="l2",
-         delta=1e-3, interp="nearest") -> BakedObjective:
+         delta=1e-3, interp="nearest", fan_blend=FAN_BLEND) -> BakedObjective:
     """Bake Eq. 14 into per-frame, per-wedge coefficients (sec. 3.6).
 
     ``metric``: ``"plane"`` measures the distance to the region in the (p'', p'^2) plane as the
@@ -230,8 +235,12 @@ def bake(pd, regions, target, alpha=1.0, beta=1.0, tau_scale=None, samples_per_f
     C = np.ascontiguousarray
     if penalty not in ("l1", "l2"):
         raise RetimeError(f"unknown penalty {penalty!r} (use 'l2' or 'l1')")
+    # each vertex's ray angle from its frame's fan centre, in the metric (a uniform rescaling, as soften's,
+    # keeps it): the smoothing across rays reads these instead of an arctan2 per ray and sample
+    ray = np.arctan2(V[:, 1] - np.repeat(Fr[:, 3], cnt), V[:, 0] - np.repeat(Fr[:, 2], cnt))
     arrays = BakedArrays(poff, C(V[:, 0]), C(V[:, 1]), C(Fr[:, 2:]), C(Fr[:, :2]), mode, C(V[:, 2:]), s, om, fi, fw,
-                         float(alpha), 0.0 if penalty == "l2" else float(delta), float(gamma))
+                         float(alpha), 0.0 if penalty == "l2" else float(delta), float(gamma), float(fan_blend),
+                         C(ray))
     out = BakedObjective(np.asarray(regions.times, float), arrays, float(beta), float(tau_scale))
     out.seconds = time.perf_counter() - t0
     return out
@@ -401,12 +410,13 @@ def _frame_parts(i, u0, v0, ob, cache):
     p0, p1 = poff[i], poff[i + 1]
     nv = p1 - p0
     md = mode[i]
+    cu, cv = cen[i, 0], cen[i, 1]
+    at_centre = True
     if md == 2:
         qx, qy = boundary_closest(p0, p1, px, py, u, v)
         k = 0
         # a degenerate polygon is a point or a segment: its interior is empty
     else:
-        cu, cv = cen[i, 0], cen[i, 1]
         dx, dy = u - cu, v - cv
         k = cache[i]
         if k >= nv:
@@ -456,12 +466,122 @@ def _frame_parts(i, u0, v0, ob, cache):
                     else:
                         break
     kw = p0 + k if md == 0 else p0
-    w0, w1, w2, w3, w4, w5 = wc[kw, 0], wc[kw, 1], wc[kw, 2], wc[kw, 3], wc[kw, 4], wc[kw, 5]
-    g = w0 * v0 * v0 + w1 * u0 * u0 + w2 * u0 * v0 + w3 * v0 + w4 * u0 + w5
-    gu = 2.0 * w1 * u0 + w2 * v0 + w4
-    gv = 2.0 * w0 * v0 + w2 * u0 + w3
+    g, gu, gv = _wedge_quadratic(wc, kw, u0, v0)
+    if md == 0 and not at_centre and ob.blend > 0.0 and _near_a_ray(p0, nv, k, u, v, cu, cv, px, py, ob.blend):
+        g, gu, gv = _fan_blend(p0, nv, k, u, v, u0, v0, su, sv, cu, cv, ob.ray, wc, ob.blend, g, gu, gv)
     du, dv = u - qx, v - qy
     return g, gu, gv, du, dv, du * du + dv * dv, su, sv
+
+
+@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+def _wedge_quadratic(wc, kw, u0, v0):
+    """The torque term of wedge row ``kw`` at (u, v) and its gradient."""
+    w0, w1, w2, w3, w4, w5 = wc[kw, 0], wc[kw, 1], wc[kw, 2], wc[kw, 3], wc[kw, 4], wc[kw, 5]
+    g = w0 * v0 * v0 + w1 * u0 * u0 + w2 * u0 * v0 + w3 * v0 + w4 * u0 + w5
+    return g, 2.0 * w1 * u0 + w2 * v0 + w4, 2.0 * w0 * v0 + w2 * u0 + w3
+
+
+@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+def _angle_between(a, b):
+    """(b - a) mod 2 pi, in [0, 2 pi)."""
+    x = b - a
+    two_pi = 2.0 * math.pi
+    x -= two_pi * math.floor(x / two_pi)
+    return x
+
+
+@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+def _smooth_step(x):
+    """(S, dS/dx) of the C2 step from 0 at x <= -1 to 1 at x >= 1 (S(0) = 1/2, S(-x) = 1 - S(x))."""
+    if x <= -1.0:
+        return 0.0, 0.0
+    if x >= 1.0:
+        return 1.0, 0.0
+    return fan_blend_weight(x)
+
+
+@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+def _near_a_ray(p0, nv, k, u, v, cu, cv, px, py, eps):
+    """Is (u, v) within the smoothing band of either ray of wedge k? Without trigonometry (the usual
+    answer is no): the angle from a ray is below the band iff it points the same way and
+    cross < tan(band) dot."""
+    dx, dy = u - cu, v - cv
+    r = math.sqrt(dx * dx + dy * dy)
+    tb = math.tan(eps * FAN_BLEND_ANGLE / (eps + r * FAN_BLEND_ANGLE))
+    j = k + 1 if k + 1 < nv else 0
+    r0x, r0y = px[p0 + k] - cu, py[p0 + k] - cv
+    r1x, r1y = px[p0 + j] - cu, py[p0 + j] - cv
+    dot0 = r0x * dx + r0y * dy
+    dot1 = r1x * dx + r1y * dy
+    return (dot0 > 0.0 and r0x * dy - r0y * dx < tb * dot0) or (dot1 > 0.0 and dx * r1y - dy * r1x < tb * dot1)
+
+
+@njit(cache=True, fastmath=True, error_model="numpy")
+def _fan_blend(p0, nv, k, u, v, u0, v0, su, sv, cu, cv, ray, wc, eps, g, gu, gv):
+    """The torque term mollified in the fan's angle (see :data:`FAN_BLEND`): each wedge q's
+    quadratic weighted by psi_q = S((phi - theta_q) / b) - S((phi - theta_{q+1}) / b), its indicator
+    over the angle phi smoothed by a C2 kernel of half-width b (a partition of unity: the weights sum
+    to 1). b = eps / r far from the centre (eps in the frame's metric, body weights), softly capped at
+    FAN_BLEND_ANGLE near it: b = eps B / (eps + r B). Where no ray is within b of phi this is the
+    wedge's own quadratic ``g``; the fan's kinks (wedge k's gradient differs from its neighbours')
+    become C2, whatever the wedges' widths. (u, v) in the metric, (u0, v0) the timing itself."""
+    dx, dy = u - cu, v - cv
+    r2 = dx * dx + dy * dy
+    r = math.sqrt(r2)
+    B = FAN_BLEND_ANGLE
+    band = eps * B / (eps + r * B)
+    j = k + 1 if k + 1 < nv else 0
+    phi = math.atan2(dy, dx)
+    th_k = ray[p0 + k]
+    lo = _angle_between(th_k, phi)  # phi - theta_k >= 0
+    hi = lo - _angle_between(th_k, ray[p0 + j])  # phi - theta_{k+1} <= 0
+    if lo >= band and hi <= -band:
+        return g, gu, gv  # no ray within the band: the wedge's own quadratic
+    dphi_u, dphi_v = -dy * su / r2, dx * sv / r2
+    dband_dr = -eps * B * B / ((eps + r * B) ** 2)
+    db_u, db_v = dband_dr * dx * su / r, dband_dr * dy * sv / r
+    tot, tu, tv = 0.0, 0.0, 0.0
+    # wedge k, then outwards on both sides while the wedge's nearer ray is within the band
+    for direction in range(2):
+        q = k
+        d_lo, d_hi = lo, hi  # phi - theta_q, phi - theta_{q+1} (unwrapped around phi)
+        for step in range(nv):
+            if step > 0:
+                if direction == 0:  # the wedge below: its upper ray is q's lower one
+                    qn = q - 1 if q > 0 else nv - 1
+                    d_hi = d_lo
+                    d_lo = d_lo + _angle_between(ray[p0 + qn], ray[p0 + q])
+                else:
+                    qn = q + 1 if q + 1 < nv else 0
+                    qnn = qn + 1 if qn + 1 < nv else 0
+                    d_lo = d_hi
+                    d_hi = d_hi - _angle_between(ray[p0 + qn], ray[p0 + qnn])
+                q = qn
+                if (direction == 0 and d_hi >= band) or (direction == 1 and d_lo <= -band):
+                    break
+            if direction == 1 and step == 0:
+                continue  # wedge k counted once
+            s_lo, ds_lo = _smooth_step(d_lo / band)
+            s_hi, ds_hi = _smooth_step(d_hi / band)
+            psi = s_lo - s_hi
+            if psi == 0.0 and ds_lo == 0.0 and ds_hi == 0.0:
+                continue
+            gq, guq, gvq = _wedge_quadratic(wc, p0 + q, u0, v0)
+            # d psi: d(d / b) = d phi / b - (d / b) db / b
+            xl, xh = d_lo / band, d_hi / band
+            dpsi_u = ds_lo * (dphi_u - xl * db_u) / band - ds_hi * (dphi_u - xh * db_u) / band
+            dpsi_v = ds_lo * (dphi_v - xl * db_v) / band - ds_hi * (dphi_v - xh * db_v) / band
+            tot += psi * gq
+            tu += psi * guq + gq * dpsi_u
+            tv += psi * gvq + gq * dpsi_v
+    return tot, tu, tv
+
+
+@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+def fan_blend_weight(x):
+    """(w, dw/dx) of the C2 step from 0 at x = -1 to 1 at x = 1 (w(0) = 1/2, w(-x) = 1 - w(x))."""
+    x2 = x * x
+    return 0.5 + x * (15.0 - 10.0 * x2 + 3.0 * x2 * x2) / 16.0, 15.0 * (1.0 - x2) * (1.0 - x2) / 16.0
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", inline="always")
@@ -715,8 +835,29 @@ def frame_terms_numpy(obj: BakedObjective, i, u, v):
         dx, dy = x - ob.cen[i, 0], y - ob.cen[i, 1]
         between = (R0[:, 0] * dy - R0[:, 1] * dx >= 0.0) & (dx * R1[:, 1] - dy * R1[:, 0] > 0.0)
         k = int(np.argmax(between)) if between.any() else 0
-    w = ob.wc[p0 + k] if ob.mode[i] == 0 else ob.wc[p0]  # mode 1: one torque model for the frame
-    g = w[0] * v * v + w[1] * u * u + w[2] * u * v + w[3] * v + w[4] * u + w[5]
+    def quadratic(row):
+        w = ob.wc[row]
+        return w[0] * v * v + w[1] * u * u + w[2] * u * v + w[3] * v + w[4] * u + w[5]
+
+    g = quadratic(p0 + k if ob.mode[i] == 0 else p0)  # mode 1: one torque model for the frame
+    at_centre = ob.mode[i] != 0 or dx * dx + dy * dy <= 1e-24 * (1.0 + float(ob.cen[i] @ ob.cen[i]))
+    if not at_centre and ob.blend > 0.0:
+        # the mollified fan (see _fan_blend): every wedge's quadratic times its smoothed indicator
+        theta = np.arctan2(R0[:, 1], R0[:, 0])
+        widths = np.mod(np.roll(theta, -1) - theta, 2 * np.pi)  # wedge q spans theta[q] .. theta[q + 1]
+        phi = np.arctan2(dy, dx)
+        r = np.hypot(dx, dy)
+        band = ob.blend * FAN_BLEND_ANGLE / (ob.blend + r * FAN_BLEND_ANGLE)
+        wrap = lambda a: np.mod(a + np.pi, 2 * np.pi) - np.pi  # noqa: E731
+        lo_ray, hi_ray = wrap(phi - theta), wrap(phi - np.roll(theta, -1))
+        # unwrapped from the ray nearer to phi (the other one is a wedge's width away)
+        d_lo = np.where(np.abs(lo_ray) <= np.abs(hi_ray), lo_ray, hi_ray + widths)
+        d_hi = d_lo - widths
+        step = lambda x: np.where(x <= -1, 0.0, np.where(x >= 1, 1.0, 0.5 + np.clip(x, -1, 1) * (  # noqa: E731
+            15.0 - 10.0 * np.clip(x, -1, 1) ** 2 + 3.0 * np.clip(x, -1, 1) ** 4) / 16.0))
+        psi = step(d_lo / band) - step(d_hi / band)
+        if np.abs(psi[k] - 1.0) > 0.0:  # a ray within the band: blend, else the wedge's own quadratic
+            g = float(sum(psi[q] * quadratic(p0 + q) for q in np.flatnonzero(psi != 0.0)))
     return d, float(g)
 
 

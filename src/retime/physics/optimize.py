@@ -13,8 +13,12 @@ coefficients to its pinned span (:meth:`TimingSpline.coefficients`), so a lock h
 
 Methods:
 
+* ``"newton"`` (default): ``"lbfgs"``, then Newton's method on the banded problem from its answer
+  (:mod:`.newton`), whose answer is kept when its objective is no worse; its stopping test is
+  second order (no Newton step predicts a gain), which L-BFGS's (the gain over ten iterations)
+  is not: L-BFGS stopped 0.1-1 source frames from the minimum, wherever the input's rounding led it;
 * ``"gd"``: the paper's gradient descent (projected onto the bounds, Armijo backtracking);
-* ``"lbfgs"`` (default): quasi-Newton, a projected L-BFGS with little per-iteration overhead;
+* ``"lbfgs"``: quasi-Newton, a projected L-BFGS with little per-iteration overhead;
 * ``"lbfgsb"``: SciPy's L-BFGS-B with the bounds (same idea, more overhead per iteration);
 * ``"slsqp"``: SciPy's SLSQP, which takes the equality constraints directly.
 
@@ -37,10 +41,14 @@ from scipy.optimize import minimize
 
 from ..blas import single_threaded_blas
 from ..errors import RetimeError
+from .newton import OBJECTIVE_FLOOR
 from .objective import BakedObjective, ObjectiveWorkspace, evaluate
 from .spline import TimingSpline
 
-METHODS = ("lbfgs", "lbfgsb", "gd", "slsqp")
+METHODS = ("newton", "lbfgs", "lbfgsb", "gd", "slsqp")
+KKT_TOL = 1e-3  # converged: the Newton test met and kkt_residual below this (the relative objective change a
+# relative change of one speed coefficient would still bring; a float32 copy of a clip then retimes
+# within 0.1 source frame of the original, benchmarks/physics_converge.py)
 
 
 @dataclass
@@ -51,9 +59,11 @@ class SolveInfo:
     evaluations: int
     seconds: float
     constraint_violation: float
-    converged: bool  # the method's own stopping test was met (see message), not a KKT test
+    converged: bool  # "newton": its second-order test met and kkt_residual <= KKT_TOL; others: their own test
     message: str = ""  # why it stopped
     kkt_residual: float = float("nan")  # first-order optimality at the answer (see kkt_residual)
+    lbfgs_objective: float = float("nan")  # "newton": the L-BFGS answer's objective, before the polish
+    newton_iterations: int = 0  # "newton": the polish's iterations (included in iterations)
 
 
 @dataclass
@@ -260,11 +270,73 @@ def _gd_inner(fun, w0, bounds, max_iter, tol):
     return w, it, False, "iteration limit"
 
 
-def solve(problem: Problem, w0=None, method="lbfgs", max_iter=500, tol=1e-9, eq_tol=1e-6,
-          max_seconds=None) -> tuple[np.ndarray, SolveInfo]:
-    """Minimize the objective from ``w0`` (default: the spline's current w)."""
+def solve(problem: Problem, w0=None, method="newton", max_iter=500, tol=1e-9, eq_tol=1e-6,
+          max_seconds=None, newton_iter=300) -> tuple[np.ndarray, SolveInfo]:
+    """Minimize the objective from ``w0`` (default: the spline's current w). ``newton_iter``: the
+    Newton polish's iteration limit (method ``"newton"``)."""
     with single_threaded_blas():  # the quasi-Newton updates are tiny dense products
-        return _solve(problem, w0, method, max_iter, tol, eq_tol, max_seconds)
+        if method != "newton":
+            return _solve(problem, w0, method, max_iter, tol, eq_tol, max_seconds)
+        t0 = time.perf_counter()
+        w, first = _solve(problem, w0, "lbfgs", max_iter, tol, eq_tol, max_seconds)
+        evals = first.evaluations
+        left = None if max_seconds is None else max(0.0, max_seconds - (time.perf_counter() - t0))
+        w_n, it, ok, msg, n_evals = polish(problem, w, eq_tol, newton_iter, left)
+        val_n = problem.value(w_n)
+        viol_n = float(np.max(np.abs(problem.eq(w_n)[0]))) if problem.n_eq else 0.0
+        keep = val_n <= first.objective and viol_n <= max(eq_tol, first.constraint_violation)
+        if keep:
+            w = w_n
+        else:
+            # Newton standing still (the same curve, its gauge fixed, one rounding apart) confirms the
+            # L-BFGS answer; a Newton answer truly above it does not
+            same = abs(val_n - first.objective) <= 1e-12 * max(abs(first.objective), OBJECTIVE_FLOOR)
+            ok = ok and same
+            msg = f"{msg}; the L-BFGS answer is kept (Newton's objective {val_n:.9g} is not below it)"
+        val, kkt = kkt_residual(problem, w)
+        viol = float(np.max(np.abs(problem.eq(w)[0]))) if problem.n_eq else 0.0
+        info = SolveInfo("newton", val, first.iterations + it, evals + n_evals, time.perf_counter() - t0, viol,
+                         bool(ok) and kkt <= KKT_TOL and viol <= max(eq_tol, 1e-9) * 10, msg, kkt,
+                         lbfgs_objective=first.objective, newton_iterations=it)
+        return w, info
+
+
+def polish(problem: Problem, w, eq_tol=1e-6, max_iter=300, max_seconds=None):
+    """Newton's method from w on the banded (c, T) coordinates (:mod:`.newton`); keytimes by an
+    augmented Lagrangian whose multipliers start at their least-squares values at w.
+    (w, iterations, converged, message, evaluations)."""
+    from .newton import BandedCoordinates, BandedObjective, newton_inner
+
+    t0 = time.perf_counter()
+    coords = BandedCoordinates(problem)
+    z, c0 = coords.from_w(w)
+    bounds = (problem.w_min, problem.w_max)
+    mu = np.zeros(problem.n_eq)
+    rho = 0.0
+    if problem.n_eq:
+        f0, g = problem.fun(w)
+        J = problem.eq(w)[1]
+        mu = np.linalg.lstsq(J.T, -g, rcond=None)[0]
+        rho = 1e3 * max(1.0, abs(f0)) / max(problem.spline.S, 1e-3) ** 2
+    iters = 0
+    evals = 0
+    ok, msg = False, ""
+    deadline = None if max_seconds is None else t0 + max_seconds
+    for _ in range(1 if not problem.n_eq else 20):
+        fun = BandedObjective(coords, c0, mu, rho)
+        z, _, it, ok, msg = newton_inner(fun, z, bounds, max_iter=max(1, max_iter - iters), deadline=deadline)
+        iters += it
+        evals += fun.evaluations
+        if not problem.n_eq:
+            break
+        h = problem.eq(coords.to_w(z, c0))[0]
+        if float(np.max(np.abs(h))) <= eq_tol and ok:
+            break
+        mu = mu + rho * h
+        if iters >= max_iter or (deadline is not None and time.perf_counter() > deadline):
+            ok = False
+            break
+    return coords.to_w(z, c0), iters, ok, msg, evals
 
 
 def _solve(problem, w0, method, max_iter, tol, eq_tol, max_seconds):
@@ -304,7 +376,8 @@ def kkt_residual(problem: Problem, w) -> tuple[float, float]:
     """(E(w), the first-order optimality residual at w): max over the coefficients of
     |dL/dw_k| w_k / |E|, the relative change of the objective a relative change of one speed
     coefficient would still bring, where L is E plus the keytimes' least-squares multipliers times
-    their residuals, and a coefficient held at its bound by the gradient counts 0. Zero at a smooth
+    their residuals, and a coefficient held at its bound by the gradient counts 0 (relative to at least
+    newton.OBJECTIVE_FLOOR: the original timing's objective is 0 up to rounding). Zero at a smooth
     constrained minimum whatever the objective's units; it stays large where the answer sits on a kink
     of the objective, which no gradient-based stop can see (benchmarks/physics_converge.py counts
     those)."""
@@ -316,7 +389,7 @@ def kkt_residual(problem: Problem, w) -> tuple[float, float]:
         mu = np.linalg.lstsq(J[:, free].T, -g[free], rcond=None)[0]
         g = g + J.T @ mu
     r = np.where(free, np.abs(g) * np.abs(w), 0.0)
-    return val, float(np.max(r, initial=0.0)) / max(abs(val), 1e-12)
+    return val, float(np.max(r, initial=0.0)) / max(abs(val), OBJECTIVE_FLOOR)
 
 
 def _augmented_lagrangian(problem, w, bounds, inner, max_iter, tol, eq_tol, t0, max_seconds):
@@ -363,7 +436,11 @@ class RetimingSession:
     Control points are the spline's (output time, source time) pairs (:meth:`control_points`);
     index 0 and the last one are the ends (source 0 and S) and cannot move vertically."""
 
-    def __init__(self, problem: Problem, method="lbfgs", fps=None):
+    def __init__(self, problem: Problem, method=None, fps=None):
+        if method is None:  # the physics method's default (the editor's sessions, physics_warp's own)
+            from .method import Settings
+
+            method = Settings.optimizer
         self.problem = problem
         self.method = method
         self.fps = fps
@@ -465,13 +542,21 @@ class RetimingSession:
     def _rebake_spline(self):
         self.problem.spline.w = np.clip(self.problem.spline.w, self.problem.w_min, self.problem.w_max)
 
-    def reconverge(self, max_iter=2000, tol=1e-5, max_seconds=None) -> SolveInfo:
-        """Re-optimize from the current curve. The default ``tol`` (relative objective gain over ten
-        iterations) suits interaction: the curve then stays within a fraction of a source frame of
-        the fully converged one (``benchmarks/physics.py`` measures how far, on 16_16 at half
-        duration)."""
-        w, info = solve(self.problem, self.spline.w, method=self.method, max_iter=max_iter, tol=tol,
+    def reconverge(self, max_iter=2000, tol=None, max_seconds=None, quick=False) -> SolveInfo:
+        """Re-optimize from the current curve. ``quick``: the first stage alone (L-BFGS to ``tol``,
+        default 1e-5, the relative objective gain over ten iterations), the editor's answer while a
+        drag goes on: within a fraction of a source frame of the converged one, in milliseconds
+        (``benchmarks/physics.py`` measures both on 16_16 at half duration). Otherwise the session's
+        method to the end: with ``"newton"``, L-BFGS to ``tol`` (default 1e-9: Newton's polish from a
+        loose L-BFGS stop crawls through hundreds of small steps) and the Newton polish."""
+        method = "lbfgs" if quick and self.method == "newton" else self.method
+        if tol is None:
+            tol = 1e-9 if method == "newton" else 1e-5
+        w, info = solve(self.problem, self.spline.w, method=method, max_iter=max_iter, tol=tol,
                         max_seconds=max_seconds)
+        if method != self.method:  # the first stage of the session's method: not its answer yet
+            info.converged = False
+            info.message = f"quick (first stage only): {info.message}"
         self.spline.w = w
         self.history.append(info)
         return info

@@ -78,7 +78,8 @@ def build_report(spline, pd, regions, fps, tol=IN_REGION_TOL, info=None, extra=N
         summary["optimizer"] = {"method": info.method, "objective": info.objective, "iterations": info.iterations,
                                 "evaluations": info.evaluations, "seconds": round(info.seconds, 4),
                                 "constraint_violation": info.constraint_violation, "converged": info.converged,
-                                "stopped": info.message, "kkt_residual": info.kkt_residual}
+                                "stopped": info.message, "kkt_residual": info.kkt_residual,
+                                "lbfgs_objective": info.lbfgs_objective, "newton_iterations": info.newton_iterations}
     if extra:
         summary.update(extra)
     return {"summary": summary, "frames": frames}

@@ -1,0 +1,272 @@
+"""Newton's method on the banded problem: the polish after L-BFGS (issue 24).
+
+The objective is a sum over source samples, each of which reads four consecutive spline
+coefficients c_m..c_{m+3} (and the duration T). In the coordinates (c, T) -- the interior
+coefficients that are not pinned (ends, locks), plus T when the duration is free -- its Hessian is
+therefore **banded** (bandwidth 3) with one dense row and column for T: an arrowhead. (In the
+optimizer's w, each c is a normalized cumulative sum of all of them, so the same Hessian is dense.)
+
+* **Hessian:** central differences of the analytic gradient with graph colouring: the coefficients
+  ``k = r (mod 7)`` are stepped together (two columns of one colour are at least 7 apart, so no
+  sample reads both and every gradient entry changes by one of them only), T alone; 2 x 7 (2 x 8
+  with a free duration) gradients per Hessian whatever the clip's length.
+* **Step:** damped Newton (Levenberg-Marquardt: H + lambda (|diag H| + its mean), Cholesky of the
+  band by :func:`scipy.linalg.cholesky_banded`, the T column by its Schur complement), the damping
+  raised while H + lambda D is not positive definite or a step does not give a quarter of the
+  decrease its model predicts, and lowered after a step that does. The objective is stiff (the exact
+  penalty's curvature alpha / delta at a region's boundary) and not convex, so the damping does the
+  globalization; the polish starts from L-BFGS's answer, near a minimum.
+* **Stop:** converged when the (nearly undamped) step's predicted gain is below 1e-11 of the
+  objective, or ten steps together gained less than 1e-10 of it (creeping along a direction of
+  almost no curvature); :func:`.optimize.solve` also asks the KKT residual.
+* **Bounds** (``w_min <= w <= w_max``: each increment c_{k+1} - c_k within w d_k T) by step
+  truncation: a step that would leave them is shortened to stay inside (fraction to the boundary).
+  A step that a bound blocks entirely ends the polish ("a speed bound blocks the step").
+* **Keytimes** p(t*) = s* by the augmented Lagrangian, as in :mod:`.optimize`: their residuals
+  read four coefficients (and T), so the penalty keeps the band.
+* **The torque term's kinks** at the fan's rays are mollified in the objective itself
+  (:data:`.objective.FAN_BLEND`); without that neither L-BFGS nor Newton converged.
+* **The l1 penalty's kink** is the smooth equivalent the objective already uses,
+  ``alpha (sqrt(d^2 + delta^2) - delta)`` with ``delta`` = 1e-3 body weights of residual force
+  (:mod:`.objective`): quadratic within a thousandth of a body weight of the region, linear beyond;
+  a residual force below a thousandth of a body weight is below anything a capture resolves.
+
+``w`` maps to (c, T) and back exactly (w_k = (c_{k+1} - c_k) / (d_k T), which also satisfies the
+speed-scale gauge of :meth:`.spline.TimingSpline.gauge`), so the polish returns the same kind of
+answer as L-BFGS.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from scipy.linalg import cho_solve_banded, cholesky_banded, LinAlgError
+
+from .objective import evaluate_c
+
+BAND = 3  # a sample reads c_m .. c_{m+3}
+COLOURS = 2 * BAND + 1
+STALL_ITERATIONS = 10
+STALL_GAIN = 1e-10
+OBJECTIVE_FLOOR = 1e-6  # relative tests are relative to at least this: an objective of 1e-18 (the original
+# timing, which costs nothing) has no relative digits left to gain
+
+
+class BandedCoordinates:
+    """The (c, T) coordinates of a problem's spline: z = (c at ``free`` indices [, T])."""
+
+    def __init__(self, problem):
+        sp = problem.spline
+        self.problem = problem
+        self.spline = sp
+        idx, _ = sp.pieces()
+        pinned = set(idx)
+        self.free = np.array([k for k in range(sp.n_c) if k not in pinned], dtype=np.int64)
+        self.free_T = sp.free
+        self.n = len(self.free) + (1 if self.free_T else 0)
+
+    def from_w(self, w):
+        sp = self.spline
+        c = sp.coefficients(w)
+        T = sp.duration_of(w)
+        z = c[self.free]
+        return (np.r_[z, T] if self.free_T else z.copy()), c
+
+    def coefficients(self, z, c_template):
+        c = c_template.copy()
+        c[self.free] = z[:len(self.free)]
+        T = float(z[-1]) if self.free_T else self.spline.fixed_T
+        return c, T
+
+    def to_w(self, z, c_template):
+        c, T = self.coefficients(z, c_template)
+        return np.diff(c) / (self.spline.d * T)
+
+
+
+def _keytime_terms(problem, c, T, mu, rho):
+    """Augmented-Lagrangian value mu h + rho/2 h^2 of the keytimes and its gradient in (c, T)."""
+    from .optimize import _basis_at
+
+    sp = problem.spline
+    val = 0.0
+    gc = np.zeros(len(c))
+    gT = 0.0
+    for j, (s_star, t_star) in enumerate(problem.keytimes):
+        tau = min(max(t_star / T, 0.0), 1.0)
+        Nb, dN = _basis_at(sp, tau)
+        h = float(Nb @ c) - s_star
+        dh_dT = -float(dN @ c) * tau / T if (0.0 < tau < 1.0 and sp.free) else 0.0
+        lam = mu[j] + rho * h
+        val += mu[j] * h + 0.5 * rho * h * h
+        gc += lam * Nb
+        gT += lam * dh_dT
+    return val, gc, gT
+
+
+class BandedObjective:
+    """F(z) = E(c, T) (+ the keytimes' augmented Lagrangian) and its gradient in z."""
+
+    def __init__(self, coords: BandedCoordinates, c_template, mu=None, rho=0.0):
+        self.coords = coords
+        self.c0 = c_template
+        self.mu = np.zeros(coords.problem.n_eq) if mu is None else mu
+        self.rho = rho
+        self.evaluations = 0
+
+    def __call__(self, z):
+        co, pr = self.coords, self.coords.problem
+        c, T = co.coefficients(z, self.c0)
+        self.evaluations += 1
+        val, gc, gT = evaluate_c(pr.obj, pr.spline, c, T, grad=True, workspace=pr.workspace)
+        if pr.n_eq:
+            kv, kc, kT = _keytime_terms(pr, c, T, self.mu, self.rho)
+            val += kv
+            gc = gc + kc
+            gT += kT
+        g = gc[co.free]
+        return val, (np.r_[g, gT] if co.free_T else g)
+
+
+def banded_hessian(fun, z, steps):
+    """(ab, col, corner): the Hessian of ``fun`` at z by central differences of its gradient with
+    graph colouring. ``ab`` is the band of the c-part in the upper form of
+    :func:`scipy.linalg.solveh_banded` (BAND + 1 rows), ``col`` its T column (None without T),
+    ``corner`` d2F/dT2. ``steps``: the difference step per coordinate."""
+    n_c = len(steps) - (1 if fun.coords.free_T else 0)
+    offsets = np.arange(-BAND, BAND + 1)
+    full = np.zeros((2 * BAND + 1, n_c))  # full[BAND + j - k, k] = H[j, k], from column k's gradient change
+    for r in range(COLOURS):
+        cols = np.arange(r, n_c, COLOURS)
+        if len(cols) == 0:
+            continue
+        e = np.zeros(len(z))
+        e[cols] = steps[cols]
+        dg = fun(z + e)[1] - fun(z - e)[1]
+        rows = cols[None, :] + offsets[:, None]  # (2 BAND + 1, len(cols)): the rows each column reaches
+        inside = (rows >= 0) & (rows < n_c)
+        block = np.where(inside, dg[np.clip(rows, 0, n_c - 1)], 0.0) / (2.0 * steps[cols])[None, :]
+        full[:, cols] = block
+    col = corner = None
+    if fun.coords.free_T:
+        e = np.zeros(len(z))
+        e[-1] = steps[-1]
+        dg = fun(z + e)[1] - fun(z - e)[1]
+        dg /= 2.0 * steps[-1]
+        col, corner = dg[:n_c], float(dg[-1])
+    # upper form: ab[BAND - off, k] = H[k - off, k], the mean of the entry from column k and from column k - off
+    ab = np.zeros((BAND + 1, n_c))
+    ab[BAND] = full[BAND]
+    for off in range(1, BAND + 1):
+        ab[BAND - off, off:] = 0.5 * (full[BAND - off, off:] + full[BAND + off, :-off])
+    return ab, col, corner
+
+
+def solve_arrowhead(ab, col, corner, g, damping):
+    """Solve (H + damping D) x = -g for the banded + T-arrow H, D = |diag H| + its mean (the mean
+    keeps a coordinate of small or negative curvature from needing an enormous damping); None if
+    that is not positive definite."""
+    n_c = ab.shape[1]
+    A = ab.copy()
+    diag = np.abs(A[BAND])
+    floor = float(np.mean(diag)) if n_c else 0.0
+    A[BAND] = A[BAND] + damping * (diag + floor)
+    try:
+        cb = cholesky_banded(A, lower=False)
+    except LinAlgError:
+        return None
+    if col is None:
+        return -cho_solve_banded((cb, False), g)
+    gc, gT = g[:n_c], g[n_c]
+    Ainv_g = cho_solve_banded((cb, False), gc)
+    Ainv_b = cho_solve_banded((cb, False), col)
+    a = corner + damping * (abs(corner) + floor)
+    schur = a - float(col @ Ainv_b)
+    if not schur > 0:
+        return None
+    y = -(gT - float(col @ Ainv_g)) / schur
+    x = -Ainv_g - Ainv_b * y
+    return np.r_[x, y]
+
+
+def _feasible_fraction(coords, z, dz, c0, w_min, w_max):
+    """The largest step fraction in (0, 1] (halving) that keeps every speed within the bounds."""
+    for k in range(30):
+        t = 0.5 ** k
+        w = coords.to_w(z + t * dz, c0)  # the bounds are on these
+        if np.all(w >= w_min) and np.all(w <= w_max) and np.all(np.isfinite(w)):
+            return t
+    return 0.0
+
+
+def difference_steps(coords, z):
+    """Central-difference steps: 1e-9 s of source time per coefficient (more on long clips, where the
+    coefficients' own rounding grows), 1e-9 of the duration. The objective's second derivatives
+    change over distances of 1e-8 s (a sample crossing a region's boundary, where the exact
+    penalty's curvature starts): a larger step averages across them and the model stops predicting."""
+    steps = 1e-9 * np.maximum(1.0, np.abs(z))
+    if coords.free_T:
+        steps[-1] = 1e-9 * abs(z[-1])
+    return steps
+
+
+def newton_inner(fun, z, w_bounds, max_iter=100, gain_tol=1e-11, deadline=None, log=None):
+    """Damped Newton on ``fun`` (a :class:`BandedObjective`) from z: (z, F, iterations, converged,
+    message). Converged: the (nearly undamped) Newton step's predicted gain is below ``gain_tol``
+    (relative) at a positive definite Hessian: no second-order model sees a decrease worth having
+    (what remains creeps along directions of curvature 1e-8 of the largest, by 1e-12 a step)."""
+    coords, c0 = fun.coords, fun.c0
+    w_min, w_max = w_bounds
+    f, g = fun(z)
+    damping = 1e-6
+    it = 0
+    history = [f]
+    for it in range(1, max_iter + 1):
+        if deadline is not None and time.perf_counter() > deadline:
+            return z, f, it - 1, False, "time limit"
+        ab, col, corner = banded_hessian(fun, z, difference_steps(coords, z))
+        first = True
+        while True:
+            dz = solve_arrowhead(ab, col, corner, g, damping)
+            if dz is None:  # not positive definite at this damping
+                damping = max(10.0 * damping, 1e-8)
+                first = False
+                if damping > 1e12:
+                    return z, f, it, False, "the Hessian stays indefinite"
+                continue
+            predicted = -(g @ dz) - 0.5 * _quad(ab, col, corner, dz)  # the model's decrease
+            if first and damping <= 1.0 and predicted <= gain_tol * max(abs(f), OBJECTIVE_FLOOR):
+                return z, f, it, True, f"Newton step's predicted gain below {gain_tol:g} (relative)"
+            t = _feasible_fraction(coords, z, dz, c0, w_min, w_max)
+            if t == 0.0:
+                return z, f, it, False, "a speed bound blocks the step"
+            dz = t * dz
+            fn, gn = fun(z + dz)
+            if fn < f and (f - fn) >= 0.25 * t * predicted:
+                break
+            damping = max(10.0 * damping, 1e-8)
+            first = False
+            if damping > 1e12:
+                return z, f, it, False, "no step decreases the objective"
+        if log is not None:
+            log(it, fn, predicted, f - fn, damping, t)
+        z, f, g = z + dz, fn, gn
+        damping = max(damping / 10.0, 1e-12)
+        history.append(f)
+        if len(history) > STALL_ITERATIONS and history[-STALL_ITERATIONS - 1] - f <= STALL_GAIN * max(abs(f), OBJECTIVE_FLOOR):
+            # creeping along a direction of almost no curvature: what is left is below any tolerance
+            # a timing needs (converged still asks the KKT residual, see optimize.solve)
+            return z, f, it, True, f"objective gained less than {STALL_GAIN:g} (relative) over {STALL_ITERATIONS} Newton iterations"
+    return z, f, it, False, "iteration limit"
+
+
+def _quad(ab, col, corner, x):
+    """x^T H x for the banded + arrow H."""
+    n_c = ab.shape[1]
+    xc = x[:n_c]
+    tot = float(np.sum(ab[BAND] * xc * xc))
+    for off in range(1, BAND + 1):
+        tot += 2.0 * float(np.sum(ab[BAND - off, off:] * xc[off:] * xc[:-off]))
+    if col is not None:
+        tot += 2.0 * x[-1] * float(col @ xc) + corner * x[-1] ** 2
+    return tot

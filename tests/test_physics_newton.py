@@ -1,0 +1,116 @@
+"""Newton's method on the banded problem (issue 24): the coloured banded Hessian against a dense one,
+the polish never ends worse than L-BFGS, and its stopping test."""
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, os.path.dirname(__file__))
+import physics_synth as ps  # noqa: E402
+
+from retime.physics.api import make_problem  # noqa: E402
+from retime.physics.newton import BAND, BandedCoordinates, BandedObjective, banded_hessian, \
+    difference_steps  # noqa: E402
+from retime.physics.optimize import KKT_TOL, solve  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def quarter_jump():
+    return ps.quarter_gravity_problem()
+
+
+def _dense_hessian(fun, z, steps):
+    """Column by column: one coordinate stepped at a time, no colouring, no band assumed."""
+    n = len(z)
+    H = np.zeros((n, n))
+    for k in range(n):
+        e = np.zeros(n)
+        e[k] = steps[k]
+        H[:, k] = (fun(z + e)[1] - fun(z - e)[1]) / (2 * steps[k])
+    return 0.5 * (H + H.T)
+
+
+def _from_band(ab, col, corner):
+    n_c = ab.shape[1]
+    n = n_c + (col is not None)
+    H = np.zeros((n, n))
+    for off in range(BAND + 1):
+        for k in range(off, n_c):
+            H[k - off, k] = H[k, k - off] = ab[BAND - off, k]
+    if col is not None:
+        H[:n_c, -1] = H[-1, :n_c] = col
+        H[-1, -1] = corner
+    return H
+
+
+@pytest.mark.parametrize("free", [False, True])
+def test_banded_hessian_equals_the_dense_one(quarter_jump, free):
+    """The 7-colour band (and the duration's arrow) holds every nonzero of the Hessian: the dense
+    difference Hessian has nothing outside the band, and the coloured one equals it."""
+    pd, rs, obj = quarter_jump
+    S = pd.times[-1]
+    pr = make_problem(obj, S, None if free else 0.9 * S, knot_spacing=0.2, start="uniform")
+    w, _ = solve(pr, method="lbfgs", max_iter=200)
+    co = BandedCoordinates(pr)
+    z, c0 = co.from_w(w)
+    fun = BandedObjective(co, c0)
+    steps = difference_steps(co, z)
+    dense = _dense_hessian(fun, z, steps)
+    n_c = len(co.free)
+    assert co.free_T == free and dense.shape[0] == n_c + free
+    outside = np.abs(np.triu(dense[:n_c, :n_c], BAND + 1)).max()
+    assert outside <= 1e-9 * np.abs(dense).max()
+    coloured = _from_band(*banded_hessian(fun, z, steps))
+    assert np.abs(coloured - dense).max() <= 1e-6 * np.abs(dense).max()
+
+
+def test_coordinates_map_back_to_the_same_curve(quarter_jump):
+    pd, rs, obj = quarter_jump
+    S = pd.times[-1]
+    pr = make_problem(obj, S, None, knot_spacing=0.2, start="uniform")
+    rng = np.random.default_rng(0)
+    w = pr.spline.w * np.exp(0.2 * rng.standard_normal(len(pr.spline.w)))
+    co = BandedCoordinates(pr)
+    z, c0 = co.from_w(w)
+    w2 = co.to_w(z, c0)
+    t = np.linspace(0, pr.spline.duration_of(w), 200)
+    assert pr.spline.duration_of(w2) == pytest.approx(pr.spline.duration_of(w), rel=1e-12)
+    assert np.abs(pr.spline(t, w2) - pr.spline(t, w)).max() <= 1e-12 * S
+    assert pr.spline.gauge(w2)[0] == pytest.approx(0.0, abs=1e-20)  # and reads as playback speed
+
+
+@pytest.mark.parametrize("duration,keytimes", [(0.9, ()), (None, ()), (1.0, [(1.8, 1.5), (2.4, 2.6)])])
+def test_newton_polish_is_never_worse_and_converges(quarter_jump, duration, keytimes):
+    pd, rs, obj = quarter_jump
+    S = pd.times[-1]
+    T = None if duration is None else duration * S
+    pr = make_problem(obj, S, T, keytimes=keytimes)
+    w_l, info_l = solve(pr, method="lbfgs", max_iter=3000)
+    pr = make_problem(obj, S, T, keytimes=keytimes)
+    w_n, info_n = solve(pr, method="newton", max_iter=3000)
+    assert info_n.lbfgs_objective == pytest.approx(info_l.objective, rel=1e-12)  # the same first stage
+    assert info_n.objective <= info_l.objective
+    assert info_n.converged, info_n.message
+    assert info_n.kkt_residual <= KKT_TOL and info_n.newton_iterations <= 300
+    assert info_n.message.startswith("Newton step's predicted gain")
+    for s_star, t_star in keytimes:
+        pr.spline.w = w_n
+        assert pr.spline(t_star) == pytest.approx(s_star, abs=2e-5)
+
+
+def test_the_report_block_gives_both_objectives(quarter_jump):
+    from retime.physics.report import build_report
+
+    pd, rs, obj = quarter_jump
+    S = pd.times[-1]
+    pr = make_problem(obj, S, None)
+    w, info = solve(pr, max_iter=3000)
+    pr.spline.w = w
+    block = build_report(pr.spline, pd, rs, 120.0, info=info)["summary"]["optimizer"]
+    assert block["method"] == "newton" and block["converged"] is True
+    assert block["objective"] <= block["lbfgs_objective"]
+    assert block["newton_iterations"] == info.newton_iterations > 0
+    assert block["kkt_residual"] <= KKT_TOL
