@@ -12,6 +12,9 @@ Targets: walks and runs cv <= 0.05 and max/min <= 1.3; jump flights 1.00 +- 0.05
 the skip limit (max_skip / upsampling).
 
 Usage: python3 benchmarks/guided_steady.py [--data DIR] [--json] [--score steady|paper|both]
+       [--clips TEXT ...] [--kinds walk,run,...] [--scales 0.6,1.5]
+--clips keeps the clips whose key (e.g. cmu/16_15.amc) contains one of the texts; --kinds and --scales
+keep those kinds and scales (a subset for a quick look; the targets are judged on what ran).
 Exit code 1 if a target of the steady score is missed.
 """
 from __future__ import annotations
@@ -124,7 +127,15 @@ def main(argv=None):
     ap.add_argument("--data", help="folder holding cmu/ and bvh-dev/ (default ../shared/data)")
     ap.add_argument("--json", action="store_true", help="one JSON object per clip, scale and score")
     ap.add_argument("--score", choices=("steady", "paper", "both"), default="both")
+    ap.add_argument("--clips", nargs="+", help="only clips whose key contains one of these texts")
+    ap.add_argument("--kinds", help="only these kinds, comma-separated (walk, run, jump, other)")
+    ap.add_argument("--scales", help="only these scales, comma-separated (default 0.6,1.5)")
     args = ap.parse_args(argv)
+    kinds = set(args.kinds.split(",")) if args.kinds else None
+    try:
+        scales = tuple(float(x) for x in args.scales.split(",")) if args.scales else SCALES
+    except ValueError:
+        ap.error(f"--scales takes numbers separated by commas, got {args.scales!r}")
     data = find_data(args.data)
     if data is None:
         print("dev data not found: only the bundled clips are measured", file=sys.stderr)
@@ -134,13 +145,15 @@ def main(argv=None):
         print(f"{'clip':36} {'kind':5} {'score':6} {'x':>4} | {'cv':>6} {'max/mn':>6} | {'flight speeds':22} | "
               f"first  last (limit) | time    | targets")
     for key, kind in CLIPS.items():
+        if (kinds and kind not in kinds) or (args.clips and not any(c in key for c in args.clips)):
+            continue
         path = clip_path(data, key)
         if path is None:
             print(f"{key}: not found, skipped", file=sys.stderr)
             continue
         motion = load_motion(str(path))
         fl = clip_flights(motion, kind)
-        for scale in SCALES:
+        for scale in scales:
             for score in scores:
                 r = measure(motion, kind, fl, scale, score)
                 if score == "steady":
