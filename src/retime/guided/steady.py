@@ -12,14 +12,16 @@ uniform warp, one step of ``L`` points at every output frame, is exactly represe
 average speed, and a step of ``k`` points plays ``k / L`` times the segment's mean speed. The refined
 warp minimises::
 
-    sum_p  c(t_p, v_p)  +  a(t_p, v_p) |v_p - v_{p-1}|  +  lam rho(log v_p - log v_{p-1})
+    sum_p  c(t_p, v_p)  +  |A(t_p, v_p) - A(t_p, v_{p-1})|  +  lam rho(log v_p - log v_{p-1})
 
 with ``rho(x) = |x| + x^2``, over every step, the first and the last included (the ends are warped
 like any other frame). ``c(t, v)`` is the paper's local score of playing around grid time ``t`` at
 ``v`` grid frames per output frame: the steady triple ``F[j, v-1, v-1]``, linear in ``t`` and ``v``
-between whole values; its kink at the original speed keeps a flight at exactly its speed. ``a`` is
-the table's own price of a change of speed (:func:`change_costs`): high where the body moves fast,
-low where it stands still. ``rho`` is strictly convex, so of two warps with the same scores the
+between whole values; its kink at the original speed keeps a flight at exactly its speed.
+``A(t, v)`` is the integral over speed from 1 to v of ``a(t, u)``, the table's own price of a change
+of speed by one grid frame per output frame around speed u (:func:`change_costs`): high where the
+body moves fast, low where it stands still; a change is priced at every speed it passes through.
+``rho`` is strictly convex, so of two warps with the same scores the
 steadier wins (a walk plays uniformly), and it charges a change the same sudden or spread out: a
 short excursion (a run's 0.1 s flight) is not worth its two changes, a long one (a jump's flight)
 is. ``lam`` is ``steadiness`` times the median score of the segment's frames played uniformly: the
@@ -28,7 +30,10 @@ feature scale and of the clip.
 
 The dynamic programme over (fine position, last step) is exact for this objective within its band:
 the whole feasible band when it is small, else a corridor around the discrete warp, re-centred on
-its own result while that touches the corridor's edge.
+its own result while that touches the corridor's edge. Its inner minimum, over the previous step
+for every step at once, is over a Monge matrix (both change penalties are convex functions of a
+difference of two sorted sequences), so its minimisers are monotone and a divide-and-conquer
+search finds them exactly reading O(K log K) of the K^2 entries (K step choices).
 """
 
 from __future__ import annotations
@@ -49,6 +54,8 @@ FINE = range(8, 13)
 FULL_BAND_STATES = 4_000_000
 #: corridor half-width around the discrete warp, in grid frames
 CORRIDOR = 24
+#: half-width, in grid frames, of the narrow corridor whose best warp bounds the wide search's objective
+BOUND_CORRIDOR = 2
 
 
 @dataclass
@@ -153,71 +160,176 @@ def _fine_band(lb, ub, kmin, kmax):
 
 
 @njit(cache=True)
+def _change_level(S, t, v):
+    """A(t, v) = the integral over speed from 1 to v of a(t, u) du: a (the change-cost table at
+    grid time t, linear between whole speeds, constant beyond the last) summed over the speeds a
+    change passes through, so that |A(t, v') - A(t, v)| prices a change from v to v' one grid frame
+    per output frame at a time, each at its own speed."""
+    s = S.shape[1]
+    v = max(v, 1.0)
+    total = 0.0
+    c = 1
+    lower = _bilinear(S, t, 1.0)
+    while c < s and c + 1 <= v:
+        upper = _bilinear(S, t, c + 1.0)
+        total += 0.5 * (lower + upper)
+        lower = upper
+        c += 1
+    x = v - c  # the part of the last cell (or beyond the table, where a stays at its last value)
+    if c < s:
+        upper = _bilinear(S, t, c + 1.0)
+        total += x * lower + 0.5 * x * x * (upper - lower)
+    else:
+        total += x * lower
+    return total
+
+
+@njit(cache=True)
 def _step_tables(D, S, a0, h, n_fine, kmin, kmax):
-    """(n_fine + 1, K) the two scores of a step of kmin + b fine points, by fine position q: ``c``
-    of the step that ends at q, and ``a`` (the price of a change) of the step that starts there.
-    They depend on the position and the step alone, not on the output frame, so the search reads
-    them instead of interpolating them again at every output frame whose band holds q."""
+    """The scores of the steps by fine position q, (n_fine + 1, K) each: ``c`` of the step of
+    kmin + b fine points that ends at q, and ``A`` (:func:`_change_level`) of that step's speed at q,
+    where a change from the step before it happens. They depend on the position and the step alone,
+    not on the output frame, so the search reads them instead of interpolating them again at every
+    output frame whose band holds q."""
     K = kmax - kmin + 1
     cost_into = np.empty((n_fine + 1, K))
-    change_from = np.empty((n_fine + 1, K))
+    level = np.empty((n_fine + 1, K))
     for q in range(n_fine + 1):
         for b in range(K):
             k = kmin + b
             cost_into[q, b] = _bilinear(D, a0 + (q - 0.5 * k) * h, k * h)
-            change_from[q, b] = _bilinear(S, a0 + q * h, k * h)  # the triple's middle frame is q
-    return cost_into, change_from
+            level[q, b] = _change_level(S, a0 + q * h, k * h)  # the triple's middle frame is q
+    return cost_into, level
 
 
 @njit(cache=True)
-def _segment_dp(D, cost_into, change_from, a0, h, lo, hi, kmin, kmax, lam):
+def change_penalties(kmin, kmax, lam):
+    """(K, K) lam rho(log of the ratio) of a step of kmin + b fine points after one of kmin + a, by [b, a]."""
+    K = kmax - kmin + 1
+    rho = np.empty((K, K))
+    for b in range(K):
+        for a in range(K):
+            x = math.log((kmin + b) / (kmin + a))
+            rho[b, a] = lam * (abs(x) + x * x)
+    return rho
+
+
+@njit(cache=True)
+def _monotone_min(row, rho, level, b0, b1, val, arg, stack):
+    """For b in b0..b1: val[b] = min over a of row[a] + rho[b, a] + |level[b] - level[a]|, arg[b] the
+    first minimiser (-1 where every entry is inf).
+
+    The matrix is Monge: rho is a convex function of the difference of two sorted sequences (the
+    log steps), and so is |level[b] - level[a]| (level never decreases with the step, a >= 0), so
+    C[b, a] + C[b', a'] <= C[b, a'] + C[b', a] for b < b', a < a', and adding row[a] keeps that.
+    So the first minimiser never decreases with b, and divide and conquer finds them all exactly
+    reading O(K log K) entries instead of K^2: the middle row's minimiser splits the columns that
+    the rows above and below it need search."""
+    K = row.shape[0]
+    stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3] = b0, b1, 0, K - 1
+    top = 1
+    while top > 0:
+        top -= 1
+        lo_b, hi_b, lo_a, hi_a = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
+        b = (lo_b + hi_b) // 2
+        best = INF
+        at = -1
+        lb = level[b]
+        for a in range(lo_a, hi_a + 1):
+            v = row[a] + rho[b, a] + abs(lb - level[a])
+            if v < best:
+                best = v
+                at = a
+        val[b] = best
+        arg[b] = at
+        if at < 0:  # no finite entry in these columns: none in any row's share of them either
+            at_lo, at_hi = lo_a, hi_a
+        else:
+            at_lo, at_hi = at, at
+        if lo_b < b:
+            stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = lo_b, b - 1, lo_a, at_hi
+            top += 1
+        if b < hi_b:
+            stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = b + 1, hi_b, at_lo, hi_a
+            top += 1
+
+
+@njit(cache=True)
+def _scores_to_go(cost_into, lo, hi, kmin, kmax):
+    """(m, band width): for each output position and fine position of the band, the least sum of
+    the scores c over the steps left to the end, the change penalties left out. Every term the
+    objective adds to c is >= 0, so this is a lower bound of what a warp through there still costs."""
+    m = lo.shape[0]
+    K = kmax - kmin + 1
+    wmax = 1
+    for p in range(m):
+        wmax = max(wmax, hi[p] - lo[p] + 1)
+    B = np.full((m, wmax), INF)
+    B[m - 1, hi[m - 1] - lo[m - 1]] = 0.0
+    for p in range(m - 2, -1, -1):
+        for w in range(hi[p] - lo[p] + 1):
+            q = lo[p] + w
+            best = INF
+            for b in range(max(0, lo[p + 1] - q - kmin), min(K - 1, hi[p + 1] - q - kmin) + 1):
+                qn = q + kmin + b
+                best = min(best, B[p + 1, qn - lo[p + 1]] + cost_into[qn, b])
+            B[p, w] = best
+    return B
+
+
+@njit(cache=True)
+def _segment_dp(cost_into, level, rho, lo, hi, kmin, kmax, to_go, upper):
     """Exact minimiser over the band of the steady objective for one segment.
 
     Fine position q is grid time a0 + q h; a step of k fine points plays k h grid frames per output
-    frame; cost_into, change_from: :func:`_step_tables`. Returns (fine positions (m,), objective)."""
+    frame; cost_into, level: :func:`_step_tables`; rho: :func:`change_penalties`. Each
+    state (fine position, last step) of the previous output frame hands on to the states one step
+    further, all steps at once by :func:`_monotone_min`. to_go: :func:`_scores_to_go` of the band;
+    upper: at least the objective of some warp in the band (inf if none is known). A fine position
+    whose cheapest state plus ``to_go`` exceeds ``upper`` lies on no optimal warp and hands nothing
+    on; those of an optimal warp always do, so the result stays exact.
+    Returns (fine positions (m,), objective)."""
     m = lo.shape[0]
     K = kmax - kmin + 1
-    rho = np.empty((K, K))
-    dv = np.empty((K, K))
-    for a in range(K):
-        for b in range(K):
-            x = math.log((kmin + b) / (kmin + a))
-            rho[a, b] = lam * (abs(x) + x * x)
-            dv[a, b] = abs(b - a) * h  # the change in grid frames per output frame
     offs = np.zeros(m + 1, dtype=np.int64)
     for p in range(m):
         offs[p + 1] = offs[p] + (hi[p] - lo[p] + 1) * K
-    bp = np.zeros(offs[m], dtype=np.int16)
+    bp = np.full(offs[m], -1, dtype=np.int16)
     wmax = 1
     for p in range(m):
         wmax = max(wmax, hi[p] - lo[p] + 1)
     prev = np.full((wmax, K), INF)
     cur = np.full((wmax, K), INF)
+    val = np.empty(K)
+    arg = np.empty(K, dtype=np.int64)
+    stack = np.empty((2 * K + 2, 4), dtype=np.int64)
     # position 1: the first step, from fine position 0, has no predecessor to change from
     for q in range(lo[1], hi[1] + 1):
         k = q - lo[0]
         if kmin <= k <= kmax:
-            prev[q - lo[1], k - kmin] = _bilinear(D, a0 + 0.5 * (q + lo[0]) * h, k * h)
+            prev[q - lo[1], k - kmin] = cost_into[q, k - kmin]
     for p in range(2, m):
-        for w in range(hi[p] - lo[p] + 1):
-            q = lo[p] + w
-            for b in range(K):
-                k = kmin + b
-                qp = q - k
-                best = INF
-                arg = -1
-                if lo[p - 1] <= qp <= hi[p - 1]:
-                    row = prev[qp - lo[p - 1]]
-                    sc = change_from[qp, b]
-                    for a in range(K):
-                        v = row[a] + rho[a, b] + sc * dv[a, b]
-                        if v < best:
-                            best = v
-                            arg = a
-                if arg >= 0:
-                    best += cost_into[q, b]
-                cur[w, b] = best
-                bp[offs[p] + w * K + b] = arg
+        cur[:hi[p] - lo[p] + 1] = INF
+        for wp in range(hi[p - 1] - lo[p - 1] + 1):
+            row = prev[wp]
+            qp = lo[p - 1] + wp
+            # the steps that land in this output frame's band
+            b0 = max(0, lo[p] - qp - kmin)
+            b1 = min(K - 1, hi[p] - qp - kmin)
+            if b0 > b1:
+                continue
+            least = INF
+            for a in range(K):
+                least = min(least, row[a])
+            if not least + to_go[p - 1, wp] <= upper:  # inf too: no warp reaches this position
+                continue
+            _monotone_min(row, rho, level[qp], b0, b1, val, arg, stack)
+            for b in range(b0, b1 + 1):
+                if arg[b] >= 0:
+                    q = qp + kmin + b
+                    w = q - lo[p]
+                    cur[w, b] = val[b] + cost_into[q, b]
+                    bp[offs[p] + w * K + b] = arg[b]
         prev, cur = cur, prev
     last = hi[m - 1]
     best = INF
@@ -237,6 +349,43 @@ def _segment_dp(D, cost_into, change_from, a0, h, lo, hi, kmin, kmax, lam):
         b = a
     q_out[0] = lo[0]
     return q_out, best
+
+
+def segment_dp_numpy(cost_into, level, rho, lo, hi, kmin, kmax):
+    """:func:`_segment_dp`'s plain NumPy twin: every (previous step, step) pair of every state,
+    vectorised per output frame, no monotone search. For the parity tests."""
+    m = len(lo)
+    K = kmax - kmin + 1
+    steps = kmin + np.arange(K)
+    prev = np.full((hi[1] - lo[1] + 1, K), np.inf)
+    q1 = np.arange(lo[1], hi[1] + 1)
+    ok = (q1 - lo[0] >= kmin) & (q1 - lo[0] <= kmax)
+    prev[ok, (q1 - lo[0] - kmin)[ok]] = cost_into[q1[ok], (q1 - lo[0] - kmin)[ok]]
+    back = []
+    for p in range(2, m):
+        q = np.arange(lo[p], hi[p] + 1)[:, None]
+        qp = q - steps[None, :]  # (W, K): where each step came from
+        inside = (qp >= lo[p - 1]) & (qp <= hi[p - 1])
+        rows = prev[np.clip(qp - lo[p - 1], 0, prev.shape[0] - 1)]  # (W, K_b, K_a)
+        lev = level[np.clip(qp, 0, len(level) - 1)]  # (W, K_b, K_a): the levels where each step starts
+        own = lev[:, np.arange(K), np.arange(K)]  # (W, K_b): the step's own level there
+        total = rows + rho[None] + np.abs(own[:, :, None] - lev)
+        total[~inside] = np.inf
+        a = np.argmin(total, axis=2)
+        best = np.take_along_axis(total, a[:, :, None], axis=2)[:, :, 0]
+        prev = np.where(np.isfinite(best), best + cost_into[q[:, 0]][:, :K], np.inf)
+        back.append(np.where(np.isfinite(best), a, -1))
+    b = int(np.argmin(prev[hi[m - 1] - lo[m - 1]]))
+    obj = float(prev[hi[m - 1] - lo[m - 1], b])
+    out = [int(hi[m - 1])]
+    q = int(hi[m - 1])
+    for p in range(m - 1, 1, -1):
+        a = int(back[p - 2][q - lo[p], b])
+        q -= kmin + b
+        out.append(q)
+        b = a
+    out.append(int(lo[0]))
+    return np.array(out[::-1]), obj
 
 
 def points_per_step(N, M, natural, choices=FINE) -> int:
@@ -266,18 +415,38 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
     lb[-1] = M * fine
     lo, hi = _fine_band(lb, ub, kmin, kmax)
     K = kmax - kmin + 1
-    cost_into, change_from = _step_tables(D, S, float(a0), h, M * fine, kmin, kmax)
-    if int((hi - lo + 1).max()) * K * K <= FULL_BAND_STATES:
-        q, obj = _segment_dp(D, cost_into, change_from, float(a0), h, lo, hi, kmin, kmax, float(lam))
-        return (a0 + q * h, float(obj)) if np.isfinite(obj) else (None, math.inf)
-    centre = (np.asarray(y, dtype=float) - a0) / h
-    radius = corridor / h
-    for _ in range(max_passes):
+    cost_into, level = _step_tables(D, S, float(a0), h, M * fine, kmin, kmax)
+    rho = change_penalties(kmin, kmax, float(lam))
+
+    def solve(blo, bhi, upper=math.inf):
+        to_go = _scores_to_go(cost_into, blo, bhi, kmin, kmax)
+        slack = upper * (1 + 1e-12) + 1e-12  # rounding in the bound must not cut the optimum's own states
+        return _segment_dp(cost_into, level, rho, blo, bhi, kmin, kmax, to_go, slack)
+
+    def around(centre, radius):
+        """The band cut to ``radius`` fine points about fine positions ``centre`` (None: no warp in it)."""
         blo, bhi = _fine_band(np.maximum(lo, np.floor(centre - radius).astype(np.int64)),
                               np.minimum(hi, np.ceil(centre + radius).astype(np.int64)), kmin, kmax)
-        if np.any(blo > bhi):  # the corridor holds no warp with these steps: the whole band
-            blo, bhi = lo, hi
-        q, obj = _segment_dp(D, cost_into, change_from, float(a0), h, blo, bhi, kmin, kmax, float(lam))
+        return None if np.any(blo > bhi) else (blo, bhi)
+
+    centre = (np.asarray(y, dtype=float) - a0) / h
+    # an upper bound first: the best warp in a narrow corridor about the whole-frame warp is cheap to
+    # find, and its objective lets the wide search drop the positions that cannot beat it
+    radius = BOUND_CORRIDOR
+    while (narrow := around(centre, radius / h)) is None and radius < corridor:
+        radius *= 2  # the fine steps cannot follow the whole-frame warp that closely: widen
+    q, obj = solve(*narrow) if narrow is not None else (None, math.inf)
+    if int((hi - lo + 1).max()) * K * K <= FULL_BAND_STATES:
+        q, obj = solve(lo, hi, obj)
+        return (a0 + q * h, float(obj)) if np.isfinite(obj) else (None, math.inf)
+    if np.isfinite(obj):
+        centre = q.astype(float)
+    radius = corridor / h
+    for _ in range(max_passes):
+        band = around(centre, radius)
+        blo, bhi = band if band is not None else (lo, hi)  # the corridor holds no warp: the whole band
+        # the last warp found lies in this corridor (it is centred on it): its objective bounds this one's
+        q, obj = solve(blo, bhi, obj if band is not None else math.inf)
         touches = np.any(((q == blo) & (blo > lo)) | ((q == bhi) & (bhi < hi)))
         if not touches or not np.isfinite(obj):
             break
