@@ -258,6 +258,13 @@ def _tiny_segment(rng, n=9, s=3, M=4):
                 tables=(cost_into, level, rho))
 
 
+def _search(st, args, upper=np.inf):
+    """The compiled search over the band with its Lagrangian bound, pruning above ``upper``."""
+    cost_into, level, rho, lo, hi, kmin, kmax = args
+    price, to_go, _ = st.step_price(cost_into, level, rho, kmin, kmax, len(lo) - 1)
+    return st._segment_dp(*args, to_go, price, upper)
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_segment_search_is_the_brute_force_optimum(seed):
     """Every fine path of a tiny segment enumerated and scored from the formula: the search's
@@ -268,8 +275,7 @@ def test_segment_search_is_the_brute_force_optimum(seed):
 
     rng = np.random.default_rng(seed)
     t = _tiny_segment(rng)
-    to_go = st._scores_to_go(t["tables"][0], t["lo"], t["hi"], t["kmin"], t["kmax"])
-    q, obj = st._segment_dp(*t["tables"], t["lo"], t["hi"], t["kmin"], t["kmax"], to_go, np.inf)
+    q, obj = _search(st, (*t["tables"], t["lo"], t["hi"], t["kmin"], t["kmax"]))
     total = t["M"] * t["fine"]
     best = np.inf
     for steps in itertools.product(range(t["kmin"], t["kmax"] + 1), repeat=t["M"]):
@@ -342,9 +348,6 @@ def _real_segment(motion, scale):
     return (cost_into, level, st.change_penalties(kmin, kmax, lam), lo, hi, kmin, kmax)
 
 
-def _search(st, args, upper=np.inf):
-    cost_into, lo, hi, kmin, kmax = args[0], args[3], args[4], args[5], args[6]
-    return st._segment_dp(*args, st._scores_to_go(cost_into, lo, hi, kmin, kmax), upper)
 
 
 @pytest.mark.parametrize("scale", [0.6, 1.5])
@@ -374,23 +377,31 @@ def test_segment_search_matches_its_numpy_twin_on_random_tables(seed):
         assert np.array_equal(q, q_np)
 
 
-def test_scores_to_go_bound_every_warp_from_there():
-    """The bound the pruning uses: at each state of the band, no more than the scores c of any
-    continuation (checked on the cheapest continuation by brute force on a tiny band)."""
+@pytest.mark.parametrize("price", [-1.0, 0.0, 0.7])
+def test_priced_bound_is_below_every_continuation(price):
+    """The pruning's bound: from every state (q, last step) of a tiny segment, every continuation
+    with any number r of steps, scored from the formula, costs at least B[q, a] - price r; and the
+    relaxation's own warp costs what it says."""
     import itertools
 
     from retime.guided import steady as st
 
     t = _tiny_segment(np.random.default_rng(7))
-    cost_into, lo, hi, kmin, kmax = t["tables"][0], t["lo"], t["hi"], t["kmin"], t["kmax"]
-    B = st._scores_to_go(cost_into, lo, hi, kmin, kmax)
-    M, end = t["M"], t["M"] * t["fine"]
-    for p in range(M + 1):
-        for q in range(lo[p], hi[p] + 1):
-            best = np.inf
-            for steps in itertools.product(range(kmin, kmax + 1), repeat=M - p):
-                if q + sum(steps) == end:
-                    pos = q + np.cumsum(steps)
-                    if all(lo[p + 1 + i] <= x <= hi[p + 1 + i] for i, x in enumerate(pos)):
-                        best = min(best, sum(cost_into[x, k - kmin] for x, k in zip(pos, steps)))
-            assert B[p, q - lo[p]] == pytest.approx(best, rel=1e-12) if np.isfinite(best) else np.isinf(B[p, q - lo[p]])
+    cost_into, level, rho = t["tables"]
+    kmin, kmax, end, h = t["kmin"], t["kmax"], t["M"] * t["fine"], t["h"]
+    B, total, count, path = st._priced_to_go(cost_into, level, rho, kmin, kmax, price)
+    assert _objective_from_definition(t["D"], t["S"], path * h, t["lam"]) + price * count == pytest.approx(total)
+    assert path[0] == 0 and path[-1] == end and len(path) == count + 1
+    for q in range(end):
+        for a in range(kmax - kmin + 1):
+            prev_step = kmin + a
+            if q - prev_step < 0:
+                continue
+            for r in range(1, (end - q) // kmin + 1):
+                for steps in itertools.product(range(kmin, kmax + 1), repeat=r):
+                    if q + sum(steps) != end:
+                        continue
+                    x = np.concatenate([[q - prev_step, q], q + np.cumsum(steps)]) * h
+                    # the continuation's cost: the whole path's less its first step's score
+                    rest = _objective_from_definition(t["D"], t["S"], x, t["lam"]) - cost_into[q, a]
+                    assert rest >= B[q, a] - price * r - 1e-9

@@ -33,7 +33,13 @@ the whole feasible band when it is small, else a corridor around the discrete wa
 its own result while that touches the corridor's edge. Its inner minimum, over the previous step
 for every step at once, is over a Monge matrix (both change penalties are convex functions of a
 difference of two sorted sequences), so its minimisers are monotone and a divide-and-conquer
-search finds them exactly reading O(K log K) of the K^2 entries (K step choices).
+search finds them exactly reading O(K log K) of the K^2 entries (K step choices). On a large band
+it first bounds the optimum: below, by a Lagrangian relaxation of the step count (a price per step,
+any number of steps: one pass over the fine positions, :func:`_priced_to_go`, the price by
+bisection), which bounds what is left from every state; above, by the best warps of two narrow
+corridors about the relaxation's warp. A state whose cost so far plus what is left exceeds the
+upper bound lies on no optimal warp and is dropped, so the search stays exact and reads a few per
+cent of the band.
 """
 
 from __future__ import annotations
@@ -54,8 +60,15 @@ FINE = range(8, 13)
 FULL_BAND_STATES = 4_000_000
 #: corridor half-width around the discrete warp, in grid frames
 CORRIDOR = 24
-#: half-width, in grid frames, of the narrow corridor whose best warp bounds the wide search's objective
-BOUND_CORRIDOR = 2
+#: half-widths, in grid frames, of the narrow corridors whose best warps bound the wide search's objective
+BOUND_CORRIDORS = (2, 8)
+#: with at most this many step choices the inner minimum reads every pair (no monotone search)
+DIRECT_STEPS = 12
+#: below this many band positions (summed over the output frames) per fine point the search runs
+#: without bounds: finding them would cost more than they save
+PRUNE_ROWS_PER_POINT = 40
+#: bisection steps for the step price of the search's bound (the price's range halves each time)
+STEP_PRICE_ITERATIONS = 10
 
 
 @dataclass
@@ -214,6 +227,20 @@ def change_penalties(kmin, kmax, lam):
     return rho
 
 
+@njit(cache=True, inline="always")
+def _first_min(row, rho, level, b, a0, a1):
+    """(min over a in a0..a1 of row[a] + rho[b, a] + |level[b] - level[a]|, its first minimiser or -1)."""
+    best = INF
+    at = -1
+    lb = level[b]
+    for a in range(a0, a1 + 1):
+        v = row[a] + rho[b, a] + abs(lb - level[a])
+        if v < best:
+            best = v
+            at = a
+    return best, at
+
+
 @njit(cache=True)
 def _monotone_min(row, rho, level, b0, b1, val, arg, stack):
     """For b in b0..b1: val[b] = min over a of row[a] + rho[b, a] + |level[b] - level[a]|, arg[b] the
@@ -226,21 +253,17 @@ def _monotone_min(row, rho, level, b0, b1, val, arg, stack):
     reading O(K log K) entries instead of K^2: the middle row's minimiser splits the columns that
     the rows above and below it need search."""
     K = row.shape[0]
+    if K <= DIRECT_STEPS:  # few steps: reading them all costs less than the search's bookkeeping
+        for b in range(b0, b1 + 1):
+            val[b], arg[b] = _first_min(row, rho, level, b, 0, K - 1)
+        return
     stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3] = b0, b1, 0, K - 1
     top = 1
     while top > 0:
         top -= 1
         lo_b, hi_b, lo_a, hi_a = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
         b = (lo_b + hi_b) // 2
-        best = INF
-        at = -1
-        lb = level[b]
-        for a in range(lo_a, hi_a + 1):
-            v = row[a] + rho[b, a] + abs(lb - level[a])
-            if v < best:
-                best = v
-                at = a
-        val[b] = best
+        val[b], at = _first_min(row, rho, level, b, lo_a, hi_a)
         arg[b] = at
         if at < 0:  # no finite entry in these columns: none in any row's share of them either
             at_lo, at_hi = lo_a, hi_a
@@ -255,40 +278,74 @@ def _monotone_min(row, rho, level, b0, b1, val, arg, stack):
 
 
 @njit(cache=True)
-def _scores_to_go(cost_into, lo, hi, kmin, kmax):
-    """(m, band width): for each output position and fine position of the band, the least sum of
-    the scores c over the steps left to the end, the change penalties left out. Every term the
-    objective adds to c is >= 0, so this is a lower bound of what a warp through there still costs."""
-    m = lo.shape[0]
+def _priced_to_go(cost_into, level, rho, kmin, kmax, price):
+    """The segment's warps with any number of steps, each step charged ``price`` more (a Lagrangian
+    relaxation of the step count; the band is implied by the count, so it goes too).
+
+    Returns B (n_fine + 1, K): B[q, a] the least such cost from fine position q, where a step of
+    kmin + a ended, to the end; and from the start (whose first step has no change to pay) the
+    least cost, its number of steps and its fine positions. Any warp of the segment that is at q
+    after p of its M steps, last step kmin + a, costs at least B[q, a] - price (M - p) from there."""
+    n_fine = cost_into.shape[0] - 1
     K = kmax - kmin + 1
-    wmax = 1
-    for p in range(m):
-        wmax = max(wmax, hi[p] - lo[p] + 1)
-    B = np.full((m, wmax), INF)
-    B[m - 1, hi[m - 1] - lo[m - 1]] = 0.0
-    for p in range(m - 2, -1, -1):
-        for w in range(hi[p] - lo[p] + 1):
-            q = lo[p] + w
-            best = INF
-            for b in range(max(0, lo[p + 1] - q - kmin), min(K - 1, hi[p + 1] - q - kmin) + 1):
-                qn = q + kmin + b
-                best = min(best, B[p + 1, qn - lo[p + 1]] + cost_into[qn, b])
-            B[p, w] = best
-    return B
+    B = np.full((n_fine + 1, K), INF)
+    steps = np.zeros((n_fine + 1, K), dtype=np.int64)
+    nxt = np.full((n_fine + 1, K), -1, dtype=np.int64)
+    B[n_fine, :] = 0.0
+    r = np.empty(K)
+    val = np.empty(K)
+    arg = np.empty(K, dtype=np.int64)
+    stack = np.empty((2 * K + 2, 4), dtype=np.int64)
+    for q in range(n_fine - kmin, -1, -1):
+        reach = False
+        for b in range(K):
+            qn = q + kmin + b
+            r[b] = cost_into[qn, b] + price + B[qn, b] if qn <= n_fine else INF
+            reach = reach or r[b] < INF
+        if not reach:
+            continue
+        _monotone_min(r, rho, level[q], 0, K - 1, val, arg, stack)  # the penalties are symmetric in a, b
+        for a in range(K):
+            if arg[a] >= 0:
+                B[q, a] = val[a]
+                nxt[q, a] = arg[a]
+                steps[q, a] = 1 + steps[q + kmin + arg[a], arg[a]]
+    total = INF
+    first = -1
+    for b in range(K):
+        if kmin + b <= n_fine:
+            v = cost_into[kmin + b, b] + price + B[kmin + b, b]
+            if v < total:
+                total = v
+                first = b
+    if first < 0:
+        return B, total, 0, np.zeros(1, dtype=np.int64)
+    count = 1 + steps[kmin + first, first]
+    path = np.empty(count + 1, dtype=np.int64)
+    path[0] = 0
+    q = kmin + first
+    b = first
+    for i in range(1, count + 1):
+        path[i] = q
+        if i < count:
+            b2 = nxt[q, b]
+            q = q + kmin + b2
+            b = b2
+    return B, total, count, path
 
 
 @njit(cache=True)
-def _segment_dp(cost_into, level, rho, lo, hi, kmin, kmax, to_go, upper):
+def _segment_dp(cost_into, level, rho, lo, hi, kmin, kmax, to_go, price, upper):
     """Exact minimiser over the band of the steady objective for one segment.
 
     Fine position q is grid time a0 + q h; a step of k fine points plays k h grid frames per output
     frame; cost_into, level: :func:`_step_tables`; rho: :func:`change_penalties`. Each
     state (fine position, last step) of the previous output frame hands on to the states one step
-    further, all steps at once by :func:`_monotone_min`. to_go: :func:`_scores_to_go` of the band;
-    upper: at least the objective of some warp in the band (inf if none is known). A fine position
-    whose cheapest state plus ``to_go`` exceeds ``upper`` lies on no optimal warp and hands nothing
-    on; those of an optimal warp always do, so the result stays exact.
-    Returns (fine positions (m,), objective)."""
+    further, all steps at once by :func:`_monotone_min`. to_go, price: :func:`_priced_to_go`'s bound
+    and its step price; upper: at least the objective of some warp in the band (inf if none is
+    known, or a margin for rounding). A state whose cost so far plus the bound on what is left
+    exceeds ``upper`` lies on no optimal warp and hands nothing on; those of an optimal warp always
+    do, so the result stays exact. Returns (fine positions (m,), objective)."""
     m = lo.shape[0]
     K = kmax - kmin + 1
     offs = np.zeros(m + 1, dtype=np.int64)
@@ -303,6 +360,7 @@ def _segment_dp(cost_into, level, rho, lo, hi, kmin, kmax, to_go, upper):
     val = np.empty(K)
     arg = np.empty(K, dtype=np.int64)
     stack = np.empty((2 * K + 2, 4), dtype=np.int64)
+    alive = np.empty(K)
     # position 1: the first step, from fine position 0, has no predecessor to change from
     for q in range(lo[1], hi[1] + 1):
         k = q - lo[0]
@@ -318,12 +376,15 @@ def _segment_dp(cost_into, level, rho, lo, hi, kmin, kmax, to_go, upper):
             b1 = min(K - 1, hi[p] - qp - kmin)
             if b0 > b1:
                 continue
-            least = INF
+            reach = False
             for a in range(K):
-                least = min(least, row[a])
-            if not least + to_go[p - 1, wp] <= upper:  # inf too: no warp reaches this position
+                # row[a] inf too: no warp reaches this state
+                ok = row[a] + (to_go[qp, a] - price * (m - p)) <= upper
+                alive[a] = row[a] if ok else INF
+                reach = reach or ok
+            if not reach:
                 continue
-            _monotone_min(row, rho, level[qp], b0, b1, val, arg, stack)
+            _monotone_min(alive, rho, level[qp], b0, b1, val, arg, stack)
             for b in range(b0, b1 + 1):
                 if arg[b] >= 0:
                     q = qp + kmin + b
@@ -388,6 +449,49 @@ def segment_dp_numpy(cost_into, level, rho, lo, hi, kmin, kmax):
     return np.array(out[::-1]), obj
 
 
+def step_price(cost_into, level, rho, kmin, kmax, M, iterations=STEP_PRICE_ITERATIONS):
+    """The step price of :func:`_priced_to_go` whose bound is best (its dual value, the relaxation's
+    least cost less price M, is the largest; at most the optimum whatever the price), by bisection on
+    the relaxation's step count against M, from a range of a few typical scores each way (widened
+    while it does not hold the count). Returns (price, its bound B, the relaxation's warp as fine
+    positions, or None if it has no finite cost)."""
+    finite = cost_into[np.isfinite(cost_into)]
+    width = 4.0 * float(np.median(finite)) + 1e-6 if finite.size else 1.0
+    top = 4.0 * float(finite.max()) + 1.0 if finite.size else 1.0
+    best = None
+
+    def relax(price):
+        nonlocal best
+        B, total, count, path = _priced_to_go(cost_into, level, rho, kmin, kmax, price)
+        if np.isfinite(total) and (best is None or total - price * M > best[0]):
+            best = (total - price * M, price, B, path)
+        return count if np.isfinite(total) else None
+
+    lo_price, hi_price = -width, width
+    hi_count = lo_count = None
+    while (hi_count := relax(hi_price)) is not None and hi_count > M and hi_price < top:
+        lo_price, hi_price = hi_price, 2.0 * hi_price  # still too many steps at this price: dearer
+    while hi_count is not None and (lo_count := relax(lo_price)) is not None and lo_count < M and lo_price > -top:
+        hi_price, lo_price = lo_price, 2.0 * lo_price
+    for i in range(int(iterations) if hi_count is not None and lo_count is not None else 0):
+        if hi_count >= M or lo_count <= M:
+            break  # the range's ends already give M steps (or cannot be moved further)
+        # the step count falls with the price about linearly near M: aim there, every other time
+        # halve the range instead, so that the range shrinks however the count falls
+        t = (lo_count - M) / (lo_count - hi_count) if i % 2 == 0 else 0.5
+        price = lo_price + (hi_price - lo_price) * min(max(t, 0.05), 0.95)
+        count = relax(price)
+        if count is None or count == M:
+            break
+        if count > M:
+            lo_price, lo_count = price, count  # too many steps: make them dearer
+        else:
+            hi_price, hi_count = price, count
+    if best is None:
+        return 0.0, np.zeros((cost_into.shape[0], kmax - kmin + 1)), None
+    return best[1], best[2], best[3]
+
+
 def points_per_step(N, M, natural, choices=FINE) -> int:
     """Fine points per mean step (N grid frames / M steps) that put the natural speed (``natural``
     grid frames per output frame) nearest a whole number of points (the smallest of equals)."""
@@ -418,10 +522,14 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
     cost_into, level = _step_tables(D, S, float(a0), h, M * fine, kmin, kmax)
     rho = change_penalties(kmin, kmax, float(lam))
 
+    if int((hi - lo + 1).sum()) < PRUNE_ROWS_PER_POINT * M * fine:  # a small band: search it all at once
+        price, to_go, priced_path = 0.0, np.zeros((M * fine + 1, K)), None
+    else:
+        price, to_go, priced_path = step_price(cost_into, level, rho, kmin, kmax, M)
+
     def solve(blo, bhi, upper=math.inf):
-        to_go = _scores_to_go(cost_into, blo, bhi, kmin, kmax)
-        slack = upper * (1 + 1e-12) + 1e-12  # rounding in the bound must not cut the optimum's own states
-        return _segment_dp(cost_into, level, rho, blo, bhi, kmin, kmax, to_go, slack)
+        margin = 1e-9 * (abs(upper) + abs(price) * M + 1.0)  # rounding in the bound must not cut the optimum
+        return _segment_dp(cost_into, level, rho, blo, bhi, kmin, kmax, to_go, price, upper + margin)
 
     def around(centre, radius):
         """The band cut to ``radius`` fine points about fine positions ``centre`` (None: no warp in it)."""
@@ -429,13 +537,18 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
                               np.minimum(hi, np.ceil(centre + radius).astype(np.int64)), kmin, kmax)
         return None if np.any(blo > bhi) else (blo, bhi)
 
-    centre = (np.asarray(y, dtype=float) - a0) / h
-    # an upper bound first: the best warp in a narrow corridor about the whole-frame warp is cheap to
-    # find, and its objective lets the wide search drop the positions that cannot beat it
-    radius = BOUND_CORRIDOR
-    while (narrow := around(centre, radius / h)) is None and radius < corridor:
-        radius *= 2  # the fine steps cannot follow the whole-frame warp that closely: widen
-    q, obj = solve(*narrow) if narrow is not None else (None, math.inf)
+    # upper bounds first: the best warps in narrow corridors about the relaxation's warp (stretched
+    # to M steps; the whole-frame warp if there is none), each corridor searched with the last one's
+    # objective as its bound, are cheap to find and close to the optimum, so that the wide search
+    # drops nearly every state
+    if priced_path is not None:
+        centre = np.interp(np.linspace(0.0, len(priced_path) - 1, M + 1), np.arange(len(priced_path)), priced_path)
+    else:
+        centre = (np.asarray(y, dtype=float) - a0) / h
+    q, obj = None, math.inf
+    for radius in BOUND_CORRIDORS if priced_path is not None else ():
+        if radius < corridor and (narrow := around(centre, radius / h)) is not None:
+            q, obj = solve(*narrow, obj)
     if int((hi - lo + 1).max()) * K * K <= FULL_BAND_STATES:
         q, obj = solve(lo, hi, obj)
         return (a0 + q * h, float(obj)) if np.isfinite(obj) else (None, math.inf)
