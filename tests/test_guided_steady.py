@@ -124,6 +124,21 @@ def test_natural_and_mean_speed_both_on_the_fine_grid():
     assert (2.0 * 3 * L / 4) == pytest.approx(round(2.0 * 3 * L / 4))
 
 
+@pytest.mark.parametrize("N, M", [(162, 98), (163, 98), (407, 245), (5, 3)])
+def test_natural_speed_of_a_compression_is_an_allowed_step(N, M):
+    """A compression's natural speed is one grid frame per output frame, the slowest step allowed:
+    the points per step put an allowed step within 5% of it. CMU 118_26 at --scale 0.6 (162 grid
+    frames, 98 steps) had 6.05 points at 1x with 10 a step, the slowest allowed 7: its whole
+    jump, flight and all, played at 1.16x."""
+    from retime.guided.steady import step_range
+
+    L = points_per_step(N, M, 1.0, 8)
+    kmin, kmax = step_range(N, M, L, 8)
+    natural = M * L / N
+    assert kmin <= kmax
+    assert min(abs(k - natural) for k in range(kmin, kmax + 1)) / natural <= 0.05
+
+
 def test_speed_costs_fill_the_ends_from_their_neighbours():
     F = np.full((6, 2, 8), np.inf)
     F[1:5, 0, 0] = [1.0, 2.0, 3.0, 4.0]

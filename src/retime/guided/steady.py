@@ -492,12 +492,22 @@ def step_price(cost_into, level, rho, kmin, kmax, M, iterations=STEP_PRICE_ITERA
     return best[1], best[2], best[3]
 
 
-def points_per_step(N, M, natural, choices=FINE) -> int:
-    """Fine points per mean step (N grid frames / M steps) that put the natural speed (``natural``
-    grid frames per output frame) nearest a whole number of points (the smallest of equals)."""
+def step_range(N, M, L, s):
+    """(kmin, kmax): the fine steps, L points per mean step of N grid frames over M output frames,
+    that play between one grid frame and the skip limit ``s`` per output frame (as the DP's)."""
+    h = N / (M * L)  # grid frames per fine point
+    return max(1, math.ceil(1.0 / h - 1e-9)), math.floor(s / h + 1e-9)
+
+
+def points_per_step(N, M, natural, s=None, choices=FINE) -> int:
+    """Fine points per mean step (N grid frames / M steps) whose allowed steps (:func:`step_range`,
+    skip limit ``s``; no upper limit if None) come nearest the natural speed (``natural`` grid frames
+    per output frame), the smallest of equals. The natural speed of a compression is one grid frame
+    per output frame, the slowest step allowed: 6.05 points a step would leave 7 (1.16x) the nearest."""
     def miss(L):
         x = natural * M * L / N
-        return abs(x - round(x))
+        kmin, kmax = step_range(N, M, L, s if s is not None else N)  # no step passes the whole segment
+        return abs(x - min(max(round(x), kmin), kmax) if kmin <= kmax else math.inf)
     return min(choices, key=lambda L: (round(miss(L), 9), L))
 
 
@@ -506,10 +516,9 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
     (fractional grid frames, objective)."""
     M = len(y) - 1
     N = a1 - a0
-    fine = points_per_step(N, M, natural)
+    fine = points_per_step(N, M, natural, s)
     h = N / (M * fine)  # grid frames per fine point
-    kmin = max(1, math.ceil(1.0 / h - 1e-9))  # at least one grid frame per output frame, as the DP
-    kmax = math.floor(s / h + 1e-9)  # at most the skip limit
+    kmin, kmax = step_range(N, M, fine, s)
     if not kmin <= fine <= kmax:  # no fine steps between 1 and s grid frames: the caller keeps y
         return None, math.inf
     lam = penalty_weight(D, a0, a1, N / M, steadiness)
