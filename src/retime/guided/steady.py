@@ -351,12 +351,21 @@ def _segment_dp(cost_into, level, rho, lo, hi, kmin, kmax, to_go, price, upper):
     offs = np.zeros(m + 1, dtype=np.int64)
     for p in range(m):
         offs[p + 1] = offs[p] + (hi[p] - lo[p] + 1) * K
-    bp = np.full(offs[m], -1, dtype=np.int16)
+    bp = np.empty(offs[m], dtype=np.int16)  # read only along the optimal warp, whose entries are written
     wmax = 1
     for p in range(m):
         wmax = max(wmax, hi[p] - lo[p] + 1)
-    prev = np.full((wmax, K), INF)
-    cur = np.full((wmax, K), INF)
+    # the rows (fine positions) of the previous and the current output frame; a row is valid only if
+    # its stamp is that frame (else all inf), so that no frame clears the whole band
+    prev = np.empty((wmax, K))
+    cur = np.empty((wmax, K))
+    prev_stamp = np.full(wmax, -1, dtype=np.int64)
+    cur_stamp = np.full(wmax, -1, dtype=np.int64)
+    prev_least = np.empty(wmax)  # a valid row's least entry
+    cur_least = np.empty(wmax)
+    least_to_go = np.empty(to_go.shape[0])
+    for q in range(to_go.shape[0]):
+        least_to_go[q] = to_go[q].min()
     val = np.empty(K)
     arg = np.empty(K, dtype=np.int64)
     stack = np.empty((2 * K + 2, 4), dtype=np.int64)
@@ -365,50 +374,61 @@ def _segment_dp(cost_into, level, rho, lo, hi, kmin, kmax, to_go, price, upper):
     for q in range(lo[1], hi[1] + 1):
         k = q - lo[0]
         if kmin <= k <= kmax:
-            prev[q - lo[1], k - kmin] = cost_into[q, k - kmin]
+            w = q - lo[1]
+            prev[w, :] = INF
+            prev[w, k - kmin] = cost_into[q, k - kmin]
+            prev_stamp[w] = 1
+            prev_least[w] = cost_into[q, k - kmin]
     for p in range(2, m):
-        cur[:hi[p] - lo[p] + 1] = INF
+        left = price * (m - p)  # the bound's price for the steps after this row's state
         for wp in range(hi[p - 1] - lo[p - 1] + 1):
-            row = prev[wp]
             qp = lo[p - 1] + wp
+            if prev_stamp[wp] != p - 1 or not prev_least[wp] + (least_to_go[qp] - left) <= upper:
+                continue  # no warp reaches this position, or none through it can beat the bound
             # the steps that land in this output frame's band
             b0 = max(0, lo[p] - qp - kmin)
             b1 = min(K - 1, hi[p] - qp - kmin)
             if b0 > b1:
                 continue
-            reach = False
+            row = prev[wp]
             for a in range(K):
-                # row[a] inf too: no warp reaches this state
-                ok = row[a] + (to_go[qp, a] - price * (m - p)) <= upper
-                alive[a] = row[a] if ok else INF
-                reach = reach or ok
-            if not reach:
-                continue
+                alive[a] = row[a] if row[a] + (to_go[qp, a] - left) <= upper else INF
             _monotone_min(alive, rho, level[qp], b0, b1, val, arg, stack)
             for b in range(b0, b1 + 1):
                 if arg[b] >= 0:
                     q = qp + kmin + b
                     w = q - lo[p]
-                    cur[w, b] = val[b] + cost_into[q, b]
+                    if cur_stamp[w] != p:
+                        cur[w, :] = INF
+                        cur_stamp[w] = p
+                        cur_least[w] = INF
+                    v = val[b] + cost_into[q, b]
+                    cur[w, b] = v
+                    cur_least[w] = min(cur_least[w], v)
                     bp[offs[p] + w * K + b] = arg[b]
         prev, cur = cur, prev
-    last = hi[m - 1]
+        prev_stamp, cur_stamp = cur_stamp, prev_stamp
+        prev_least, cur_least = cur_least, prev_least
+    last = hi[m - 1] - lo[m - 1]
     best = INF
     bb = -1
-    for b in range(K):
-        if prev[last - lo[m - 1], b] < best:
-            best = prev[last - lo[m - 1], b]
-            bb = b
+    if prev_stamp[last] == m - 1:
+        for b in range(K):
+            if prev[last, b] < best:
+                best = prev[last, b]
+                bb = b
     q_out = np.empty(m, dtype=np.int64)
-    q_out[m - 1] = last
-    q = last
+    q_out[0] = lo[0]
+    q_out[m - 1] = hi[m - 1]
+    if bb < 0:
+        return q_out, INF
+    q = hi[m - 1]
     b = bb
     for p in range(m - 1, 1, -1):
         a = bp[offs[p] + (q - lo[p]) * K + b]
         q = q - (kmin + b)
         q_out[p - 1] = q
         b = a
-    q_out[0] = lo[0]
     return q_out, best
 
 
