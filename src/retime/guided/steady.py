@@ -67,8 +67,8 @@ DIRECT_STEPS = 12
 #: below this many band positions (summed over the output frames) per fine point the search runs
 #: without bounds: finding them would cost more than they save
 PRUNE_ROWS_PER_POINT = 40
-#: bisection steps for the step price of the search's bound (the price's range halves each time)
-STEP_PRICE_ITERATIONS = 10
+#: cuts of the step price's range for the search's bound (after the cheaper relaxation's price)
+STEP_PRICE_ITERATIONS = 6
 
 
 @dataclass
@@ -469,15 +469,74 @@ def segment_dp_numpy(cost_into, level, rho, lo, hi, kmin, kmax):
     return np.array(out[::-1]), obj
 
 
+@njit(cache=True)
+def _priced_scores(cost_into, kmin, kmax, price):
+    """(least cost, its number of steps) of :func:`_priced_to_go`'s relaxation without the change
+    penalties: K times cheaper, and its best price is near that of the whole relaxation."""
+    n_fine = cost_into.shape[0] - 1
+    K = kmax - kmin + 1
+    B = np.full(n_fine + 1, INF)
+    steps = np.zeros(n_fine + 1, dtype=np.int64)
+    B[n_fine] = 0.0
+    for q in range(n_fine - kmin, -1, -1):
+        for b in range(min(K, n_fine - q - kmin + 1)):
+            qn = q + kmin + b
+            v = cost_into[qn, b] + price + B[qn]
+            if v < B[q]:
+                B[q] = v
+                steps[q] = steps[qn] + 1
+    return B[0], steps[0]
+
+
+def _bisect_price(count_at, M, lo, hi, top, iterations):
+    """Narrow the price range [lo, hi] about the price at which ``count_at`` (a step count that falls
+    as the price rises; None where there is no warp) gives M: widened first (doubling) until its ends'
+    counts hold M or a price reaches +-top, then ``iterations`` times cut, alternately at the linear
+    guess and in half (the count falls in jumps, so each alone can stall). Returns (lo, hi)."""
+    width = hi - lo
+    hi_count, lo_count = count_at(hi), None
+    while hi_count is not None and hi_count > M and hi < top:
+        lo, lo_count = hi, hi_count  # still too many steps at this price: dearer
+        width *= 2.0
+        hi = lo + width
+        hi_count = count_at(hi)
+    if hi_count is not None and lo_count is None:
+        lo_count = count_at(lo)
+        while lo_count is not None and lo_count < M and lo > -top:
+            hi, hi_count = lo, lo_count
+            width *= 2.0
+            lo = hi - width
+            lo_count = count_at(lo)
+    for i in range(int(iterations) if hi_count is not None and lo_count is not None else 0):
+        if hi_count >= M or lo_count <= M:
+            break  # an end already gives M steps, or the range could not be widened to hold M
+        t = (lo_count - M) / (lo_count - hi_count) if i % 2 == 0 else 0.5
+        price = lo + (hi - lo) * min(max(t, 0.05), 0.95)
+        count = count_at(price)
+        if count is None or count == M:
+            break
+        if count > M:
+            lo, lo_count = price, count
+        else:
+            hi, hi_count = price, count
+    return lo, hi
+
+
 def step_price(cost_into, level, rho, kmin, kmax, M, iterations=STEP_PRICE_ITERATIONS):
     """The step price of :func:`_priced_to_go` whose bound is best (its dual value, the relaxation's
-    least cost less price M, is the largest; at most the optimum whatever the price), by bisection on
-    the relaxation's step count against M, from a range of a few typical scores each way (widened
-    while it does not hold the count). Returns (price, its bound B, the relaxation's warp as fine
-    positions, or None if it has no finite cost)."""
+    least cost less price M, is the largest; at most the optimum whatever the price): the price at
+    which the relaxation without change penalties (:func:`_priced_scores`) takes M steps first, then
+    ``iterations`` cuts of a range a quarter of it wide each way for the whole relaxation's.
+    Returns (price, its bound B, the relaxation's warp as fine positions, or None if it has no
+    finite cost)."""
     finite = cost_into[np.isfinite(cost_into)]
     width = 4.0 * float(np.median(finite)) + 1e-6 if finite.size else 1.0
     top = 4.0 * float(finite.max()) + 1.0 if finite.size else 1.0
+
+    def scores_count(price):
+        total, count = _priced_scores(cost_into, kmin, kmax, price)
+        return int(count) if np.isfinite(total) else None
+
     best = None
 
     def relax(price):
@@ -487,26 +546,10 @@ def step_price(cost_into, level, rho, kmin, kmax, M, iterations=STEP_PRICE_ITERA
             best = (total - price * M, price, B, path)
         return count if np.isfinite(total) else None
 
-    lo_price, hi_price = -width, width
-    hi_count = lo_count = None
-    while (hi_count := relax(hi_price)) is not None and hi_count > M and hi_price < top:
-        lo_price, hi_price = hi_price, 2.0 * hi_price  # still too many steps at this price: dearer
-    while hi_count is not None and (lo_count := relax(lo_price)) is not None and lo_count < M and lo_price > -top:
-        hi_price, lo_price = lo_price, 2.0 * lo_price
-    for i in range(int(iterations) if hi_count is not None and lo_count is not None else 0):
-        if hi_count >= M or lo_count <= M:
-            break  # the range's ends already give M steps (or cannot be moved further)
-        # the step count falls with the price about linearly near M: aim there, every other time
-        # halve the range instead, so that the range shrinks however the count falls
-        t = (lo_count - M) / (lo_count - hi_count) if i % 2 == 0 else 0.5
-        price = lo_price + (hi_price - lo_price) * min(max(t, 0.05), 0.95)
-        count = relax(price)
-        if count is None or count == M:
-            break
-        if count > M:
-            lo_price, lo_count = price, count  # too many steps: make them dearer
-        else:
-            hi_price, hi_count = price, count
+    lo, hi = _bisect_price(scores_count, M, -width, width, top, 40)
+    guess = 0.5 * (lo + hi)
+    spread = 0.25 * abs(guess) + 0.01 * width
+    _bisect_price(relax, M, guess - spread, guess + spread, top, iterations)
     if best is None:
         return 0.0, np.zeros((cost_into.shape[0], kmax - kmin + 1)), None
     return best[1], best[2], best[3]
