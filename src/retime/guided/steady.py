@@ -61,7 +61,7 @@ FULL_BAND_STATES = 4_000_000
 #: corridor half-width around the discrete warp, in grid frames
 CORRIDOR = 24
 #: half-widths, in grid frames, of the narrow corridors whose best warps bound the wide search's objective
-BOUND_CORRIDORS = (2, 8)
+BOUND_CORRIDORS = (2, 8, 20)
 #: with at most this many step choices the inner minimum reads every pair (no monotone search)
 DIRECT_STEPS = 12
 #: below this many band positions (summed over the output frames) per fine point the search runs
@@ -609,23 +609,25 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
                               np.minimum(hi, np.ceil(centre + radius).astype(np.int64)), kmin, kmax)
         return None if np.any(blo > bhi) else (blo, bhi)
 
-    # upper bounds first: the best warps in narrow corridors about the relaxation's warp (stretched
-    # to M steps; the whole-frame warp if there is none), each corridor searched with the last one's
-    # objective as its bound, are cheap to find and close to the optimum, so that the wide search
-    # drops nearly every state
-    if priced_path is not None:
-        centre = np.interp(np.linspace(0.0, len(priced_path) - 1, M + 1), np.arange(len(priced_path)), priced_path)
-    else:
-        centre = (np.asarray(y, dtype=float) - a0) / h
+    # upper bounds first: the best warps in narrow corridors, cheap to find and close to the
+    # optimum, so that the wide search drops nearly every state. The first corridors lie about the
+    # relaxation's warp (stretched to M steps; its step count can be far from M) and about the
+    # whole-frame warp; the next ones about the best warp so far, each searched with the best
+    # objective so far as its bound
+    whole_frame = (np.asarray(y, dtype=float) - a0) / h
     q, obj = None, math.inf
-    for radius in BOUND_CORRIDORS if priced_path is not None else ():
-        if radius < corridor and (narrow := around(centre, radius / h)) is not None:
-            q, obj = solve(*narrow, obj)
+    if priced_path is not None:
+        stretched = np.interp(np.linspace(0.0, len(priced_path) - 1, M + 1), np.arange(len(priced_path)), priced_path)
+        for i, radius in enumerate(r for r in BOUND_CORRIDORS if r < corridor):
+            for centre in (stretched, whole_frame) if i == 0 else (q.astype(float),) if q is not None else ():
+                if (narrow := around(centre, radius / h)) is not None:
+                    q_try, obj_try = solve(*narrow, obj)
+                    if obj_try < obj:
+                        q, obj = q_try, obj_try
+    centre = q.astype(float) if q is not None else whole_frame
     if int((hi - lo + 1).max()) * K * K <= FULL_BAND_STATES:
         q, obj = solve(lo, hi, obj)
         return (a0 + q * h, float(obj)) if np.isfinite(obj) else (None, math.inf)
-    if np.isfinite(obj):
-        centre = q.astype(float)
     radius = corridor / h
     for _ in range(max_passes):
         band = around(centre, radius)
