@@ -7,7 +7,7 @@ of the grid, and its score grows linearly with the speed error: on a steady moti
 Here the discrete warp is refined on a finer source grid, in the spirit of GDTW (Deriso & Boyd
 2019, time warping with a slope regulariser). Each segment between fixed frames (the ends and
 keytimes), ``M`` output steps over ``N`` grid frames, gets ``L`` points per *mean step* ``N / M``
-(``L`` from :data:`FINE`, chosen to put the original speed on a whole number of points): the
+(``L`` from :data:`FINE`, chosen so that an allowed step comes nearest the original speed): the
 uniform warp, one step of ``L`` points at every output frame, is exactly representable whatever the
 average speed, and a step of ``k`` points plays ``k / L`` times the segment's mean speed. The refined
 warp minimises::
@@ -29,15 +29,15 @@ penalty is measured against what the reference objects to in the uniform warp, i
 feature scale and of the clip.
 
 The dynamic programme over (fine position, last step) is exact for this objective within its band:
-the whole feasible band when it is small, else a corridor around the discrete warp, re-centred on
-its own result while that touches the corridor's edge. Its inner minimum, over the previous step
+the whole feasible band when it is small, else a corridor about the best bounding warp (below),
+re-centred on its own result while that touches the corridor's edge. Its inner minimum, over the previous step
 for every step at once, is over a Monge matrix (both change penalties are convex functions of a
 difference of two sorted sequences), so its minimisers are monotone and a divide-and-conquer
 search finds them exactly reading O(K log K) of the K^2 entries (K step choices). On a large band
 it first bounds the optimum: below, by a Lagrangian relaxation of the step count (a price per step,
 any number of steps: one pass over the fine positions, :func:`_priced_to_go`, the price by
-bisection), which bounds what is left from every state; above, by the best warps of two narrow
-corridors about the relaxation's warp. A state whose cost so far plus what is left exceeds the
+bisection), which bounds what is left from every state; above, by the best warps of narrow
+corridors about the relaxation's warp and the whole-frame warp. A state whose cost so far plus what is left exceeds the
 upper bound lies on no optimal warp and is dropped, so the search stays exact and reads a few per
 cent of the band.
 """
@@ -52,8 +52,8 @@ from numba import njit
 
 
 INF = np.inf
-#: fine grid points per mean step of a segment: the count in this range that puts the natural
-#: speed nearest a whole number of points (10 makes both 1x and the mean exact at --scale 0.6 and 1.5)
+#: fine grid points per mean step of a segment: the count in this range that puts an allowed step
+#: nearest the natural speed (10 makes both 1x and the mean exact at --scale 0.6 and 1.5)
 FINE = range(8, 13)
 #: at most this many transitions (positions x steps x steps) per output frame in the whole band; above it
 #: the refinement searches a corridor
