@@ -8,10 +8,16 @@ with the steady score (the default) and the paper's, printing:
                90% of the output (walks and runs)
   flights      mean playback speed over each flight (jumps: the longest; runs: all, for the record)
   first, last  playback speed of the first and last output step, and the skip limit there
+  pace         (walks and runs) max/min of the clip's own travel speed (the floating base's, along the
+               floor) over six equal parts of its middle 90%: above 1.3 the reference itself changes
+               pace (a start from standing, a turn, stops), and guided keeps the timing of each part
 Targets: walks and runs cv <= 0.05 and max/min <= 1.3; jump flights 1.00 +- 0.05; no end step above
 the skip limit (max_skip / upsampling).
 
 Usage: python3 benchmarks/guided_steady.py [--data DIR] [--json] [--score steady|paper|both]
+       [--clips TEXT ...] [--kinds walk,run,...] [--scales 0.6,1.5]
+--clips keeps the clips whose key (e.g. cmu/16_15.amc) contains one of the texts; --kinds and --scales
+keep those kinds and scales (a subset for a quick look; the targets are judged on what ran).
 Exit code 1 if a target of the steady score is missed.
 """
 from __future__ import annotations
@@ -94,6 +100,25 @@ def measure(motion, kind, contact_flights, scale, score):
     return row
 
 
+PACE_PARTS = 6
+
+
+def pace_ratio(motion):
+    """max/min of the floating base's speed along the floor over PACE_PARTS parts of the middle 90%."""
+    from retime.motion import forward_kinematics
+    from retime.motion.frame import up_vector
+    from retime.motion.rig import floating_base
+
+    pos, _ = forward_kinematics(motion, motion.rotations, motion.translations)
+    base = pos[:, floating_base(motion.skeleton)] * float(motion.skeleton.meters_per_unit)
+    up = up_vector(motion.skeleton.up)
+    along_floor = base - np.outer(base @ up, up)
+    speed = np.linalg.norm(np.diff(along_floor, axis=0), axis=1) * motion.fps
+    cut = int(round(len(speed) * (1 - MIDDLE) / 2))
+    parts = [p.mean() for p in np.array_split(speed[cut:len(speed) - cut], PACE_PARTS) if p.size]
+    return float(max(parts) / min(parts)) if parts and min(parts) > 0 else float("inf")
+
+
 def clip_flights(motion, kind):
     from retime.physics.contacts import foot_contacts
 
@@ -106,7 +131,7 @@ def clip_flights(motion, kind):
     return flights(contact, motion.fps, min_frames=2)
 
 
-def fmt_row(name, kind, r):
+def fmt_row(name, kind, r, pace):
     fl = " ".join(f"{s:.2f}" for s in r["flights"][:4]) + (" ..." if len(r["flights"]) > 4 else "")
     marks = []
     if "steady_ok" in r:
@@ -115,8 +140,8 @@ def fmt_row(name, kind, r):
         marks.append("flight" if r["flight_ok"] else "FLIGHT")
     marks.append("ends" if r["ends_ok"] else "ENDS")
     return (f"{name:36.36} {kind:5} {r['score']:6} {r['scale']:4.1f} | {r['cv']:6.3f} {r['ratio']:6.2f} | "
-            f"{fl:22} | {r['first']:5.2f} {r['last']:5.2f} (<= {r['limit_first']:g}) | {r['seconds']:5.2f} s | "
-            f"{' '.join(marks)}")
+            f"{fl:22} | {r['first']:5.2f} {r['last']:5.2f} (<= {r['limit_first']:g}) | "
+            f"{'-' if pace is None else format(pace, '.2f'):>5} | {r['seconds']:5.2f} s | {' '.join(marks)}")
 
 
 def main(argv=None):
@@ -124,7 +149,15 @@ def main(argv=None):
     ap.add_argument("--data", help="folder holding cmu/ and bvh-dev/ (default ../shared/data)")
     ap.add_argument("--json", action="store_true", help="one JSON object per clip, scale and score")
     ap.add_argument("--score", choices=("steady", "paper", "both"), default="both")
+    ap.add_argument("--clips", nargs="+", help="only clips whose key contains one of these texts")
+    ap.add_argument("--kinds", help="only these kinds, comma-separated (walk, run, jump, other)")
+    ap.add_argument("--scales", help="only these scales, comma-separated (default 0.6,1.5)")
     args = ap.parse_args(argv)
+    kinds = set(args.kinds.split(",")) if args.kinds else None
+    try:
+        scales = tuple(float(x) for x in args.scales.split(",")) if args.scales else SCALES
+    except ValueError:
+        ap.error(f"--scales takes numbers separated by commas, got {args.scales!r}")
     data = find_data(args.data)
     if data is None:
         print("dev data not found: only the bundled clips are measured", file=sys.stderr)
@@ -132,23 +165,26 @@ def main(argv=None):
     ok = True
     if not args.json:
         print(f"{'clip':36} {'kind':5} {'score':6} {'x':>4} | {'cv':>6} {'max/mn':>6} | {'flight speeds':22} | "
-              f"first  last (limit) | time    | targets")
+              f"first  last (limit) |  pace | time    | targets")
     for key, kind in CLIPS.items():
+        if (kinds and kind not in kinds) or (args.clips and not any(c in key for c in args.clips)):
+            continue
         path = clip_path(data, key)
         if path is None:
             print(f"{key}: not found, skipped", file=sys.stderr)
             continue
         motion = load_motion(str(path))
         fl = clip_flights(motion, kind)
-        for scale in SCALES:
+        pace = pace_ratio(motion) if kind in ("walk", "run") else None
+        for scale in scales:
             for score in scores:
                 r = measure(motion, kind, fl, scale, score)
                 if score == "steady":
                     ok &= r["ends_ok"] and r.get("steady_ok", True) and r.get("flight_ok", True)
                 if args.json:
-                    print(json.dumps({"clip": key, "kind": kind, **r}))
+                    print(json.dumps({"clip": key, "kind": kind, "pace": pace, **r}))
                 else:
-                    print(fmt_row(key, kind, r))
+                    print(fmt_row(key, kind, r, pace))
     return 0 if ok else 1
 
 

@@ -124,6 +124,21 @@ def test_natural_and_mean_speed_both_on_the_fine_grid():
     assert (2.0 * 3 * L / 4) == pytest.approx(round(2.0 * 3 * L / 4))
 
 
+@pytest.mark.parametrize("N, M", [(162, 98), (163, 98), (407, 245), (5, 3)])
+def test_natural_speed_of_a_compression_is_an_allowed_step(N, M):
+    """A compression's natural speed is one grid frame per output frame, the slowest step allowed:
+    the points per step put an allowed step within 5% of it. CMU 118_26 at --scale 0.6 (162 grid
+    frames, 98 steps) had 6.05 points at 1x with 10 a step, the slowest allowed 7: its whole
+    jump, flight and all, played at 1.16x."""
+    from retime.guided.steady import step_range
+
+    L = points_per_step(N, M, 1.0, 8)
+    kmin, kmax = step_range(N, M, L, 8)
+    natural = M * L / N
+    assert kmin <= kmax
+    assert min(abs(k - natural) for k in range(kmin, kmax + 1)) / natural <= 0.05
+
+
 def test_speed_costs_fill_the_ends_from_their_neighbours():
     F = np.full((6, 2, 8), np.inf)
     F[1:5, 0, 0] = [1.0, 2.0, 3.0, 4.0]
@@ -203,3 +218,205 @@ def test_front_ends_leave_the_defaults_to_settings():
     assert f"default {Settings.steadiness:g}" in options["steadiness"].help
     param, = [p for p in GuidedMethod.params if p.name == "blend"]
     assert param.default == Settings.blend == 1.0 and "default" in options["blend"].help
+
+
+# ------------------------------------------------------------------ the refinement's search is exact
+
+def _bilinear_scipy(T, t, v):
+    """T (n, s) at grid time t and speed v (column v - 1), linear between whole values, clamped:
+    written with SciPy, apart from the kernel's own interpolation."""
+    from scipy.interpolate import RegularGridInterpolator
+
+    n, s = T.shape
+    f = RegularGridInterpolator((np.arange(n, dtype=float), np.arange(1, s + 1, dtype=float)), T)
+    return f(np.column_stack([np.clip(t, 0, n - 1), np.clip(v, 1, s)]))
+
+
+def _change_price(S, t, v0, v1):
+    """The integral of a(t, u) du from v0 to v1 (absolute), by SciPy's adaptive quadrature."""
+    from scipy.integrate import quad
+
+    lo, hi = sorted((v0, v1))
+    edges = [lo, *[c for c in range(1, S.shape[1] + 1) if lo < c < hi], hi]  # a's kinks
+    return sum(quad(lambda u: float(_bilinear_scipy(S, np.array([t]), np.array([u]))[0]), e0, e1)[0]
+               for e0, e1 in zip(edges, edges[1:]))
+
+
+def _objective_from_definition(D, S, x, lam):
+    """The steady objective of the fractional grid path x, from the module docstring's formula."""
+    v = np.diff(x)
+    c = _bilinear_scipy(D, 0.5 * (x[1:] + x[:-1]), v)
+    change = sum(_change_price(S, x[p], v[p - 1], v[p]) for p in range(1, len(v)))
+    dl = np.diff(np.log(v))
+    return float(c.sum() + (lam * (np.abs(dl) + dl ** 2)).sum() + change)
+
+
+def _tiny_segment(rng, n=9, s=3, M=4):
+    """Random score tables and the refinement's tables for one segment 0 -> n-1 over M steps."""
+    import math
+
+    from retime.guided import steady as st
+
+    D = rng.uniform(0.0, 2.0, size=(n, s))
+    S = rng.uniform(0.0, 1.0, size=(n, s))
+    N, fine = n - 1, 3
+    h = N / (M * fine)
+    kmin, kmax = max(1, math.ceil(1 / h - 1e-9)), math.floor(s / h + 1e-9)
+    lb = np.zeros(M + 1, dtype=np.int64)
+    ub = np.full(M + 1, M * fine, dtype=np.int64)
+    ub[0], lb[-1] = 0, M * fine
+    lo, hi = st._fine_band(lb, ub, kmin, kmax)
+    lam = float(rng.uniform(0.1, 2.0))
+    cost_into, level = st._step_tables(D, S, 0.0, h, M * fine, kmin, kmax)
+    rho = st.change_penalties(kmin, kmax, lam)
+    return dict(D=D, S=S, h=h, kmin=kmin, kmax=kmax, lo=lo, hi=hi, lam=lam, M=M, fine=fine,
+                tables=(cost_into, level, rho))
+
+
+def _search(st, args, upper=np.inf):
+    """The compiled search over the band with its Lagrangian bound, pruning above ``upper``."""
+    cost_into, level, rho, lo, hi, kmin, kmax = args
+    price, to_go, _ = st.step_price(cost_into, level, rho, kmin, kmax, len(lo) - 1)
+    return st._segment_dp(*args, to_go, price, upper)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_segment_search_is_the_brute_force_optimum(seed):
+    """Every fine path of a tiny segment enumerated and scored from the formula: the search's
+    warp is the cheapest, and its objective is that warp's."""
+    import itertools
+
+    from retime.guided import steady as st
+
+    rng = np.random.default_rng(seed)
+    t = _tiny_segment(rng)
+    q, obj = _search(st, (*t["tables"], t["lo"], t["hi"], t["kmin"], t["kmax"]))
+    total = t["M"] * t["fine"]
+    best = np.inf
+    for steps in itertools.product(range(t["kmin"], t["kmax"] + 1), repeat=t["M"]):
+        if sum(steps) == total:
+            x = np.concatenate([[0], np.cumsum(steps)]) * t["h"]
+            best = min(best, _objective_from_definition(t["D"], t["S"], x, t["lam"]))
+    assert obj == pytest.approx(best, rel=1e-9)
+    assert _objective_from_definition(t["D"], t["S"], q * t["h"], t["lam"]) == pytest.approx(obj, rel=1e-9)
+
+
+def test_monotone_min_matches_the_full_minimum():
+    """The divide-and-conquer minimum over previous steps equals the plain one for every step, also
+    with rows partly inf (states not reached), on random rows and prices."""
+    from retime.guided import steady as st
+
+    rng = np.random.default_rng(1)
+    for trial in range(200):
+        kmin = int(rng.integers(1, 8))
+        kmax = kmin + int(rng.integers(0, 40))
+        K = kmax - kmin + 1
+        rho = st.change_penalties(kmin, kmax, float(rng.uniform(0.0, 5.0)))
+        level = np.cumsum(rng.uniform(0.0, 3.0, size=K) * (rng.uniform(size=K) < 0.8))  # never decreasing
+        row = rng.uniform(0.0, 10.0, size=K)
+        row[rng.uniform(size=K) < rng.uniform(0.0, 0.9)] = np.inf
+        b0 = int(rng.integers(0, K))
+        b1 = int(rng.integers(b0, K))
+        val, arg = np.empty(K), np.empty(K, dtype=np.int64)
+        st._monotone_min(row, rho, level, b0, b1, val, arg, np.empty((2 * K + 2, 4), dtype=np.int64))
+        full = row[None, :] + rho + np.abs(level[:, None] - level[None, :])
+        for b in range(b0, b1 + 1):
+            if np.isfinite(full[b]).any():
+                assert val[b] == full[b].min()
+                assert arg[b] == int(np.argmin(full[b]))
+            else:
+                assert arg[b] == -1
+
+
+def _real_segment(motion, scale):
+    """The refinement's tables for the whole-clip segment of ``motion`` at ``scale``."""
+    import math
+
+    from retime.guided import api
+    from retime.guided import steady as st
+
+    seen = {}
+    original = api.steady_warp
+
+    def spy(F, frames, fixed, steadiness, natural=1.0, **kw):
+        seen.update(F=F, frames=frames, steadiness=steadiness, natural=natural)
+        return original(F, frames, fixed, steadiness, natural, **kw)
+
+    api.steady_warp = spy
+    try:
+        guided_solve(motion, scale=scale)
+    finally:
+        api.steady_warp = original
+    F, y = seen["F"], seen["frames"]
+    D, S = st.speed_costs(F), st.change_costs(F)
+    M, a0, a1 = len(y) - 1, int(y[0]), int(y[-1])
+    N = a1 - a0
+    fine = st.points_per_step(N, M, float(np.atleast_1d(seen["natural"])[0]))
+    h = N / (M * fine)
+    kmin, kmax = max(1, math.ceil(1 / h - 1e-9)), math.floor(F.shape[1] / h + 1e-9)
+    lb = np.zeros(M + 1, dtype=np.int64)
+    ub = np.full(M + 1, M * fine, dtype=np.int64)
+    ub[0], lb[-1] = 0, M * fine
+    lo, hi = st._fine_band(lb, ub, kmin, kmax)
+    lam = st.penalty_weight(D, a0, a1, N / M, seen["steadiness"])
+    cost_into, level = st._step_tables(D, S, float(a0), h, M * fine, kmin, kmax)
+    return (cost_into, level, st.change_penalties(kmin, kmax, lam), lo, hi, kmin, kmax)
+
+
+
+
+@pytest.mark.parametrize("scale", [0.6, 1.5])
+def test_segment_search_matches_its_numpy_twin_on_a_real_clip(jump, scale):
+    """The compiled search against its plain twin (every pair of steps, no monotone search, no
+    pruning) on a real segment; pruned with the optimum itself as the bound it is the same again."""
+    from retime.guided import steady as st
+
+    args = _real_segment(jump, scale)
+    q_np, obj_np = st.segment_dp_numpy(*args)
+    for upper in (np.inf, obj_np * (1 + 1e-12)):
+        q, obj = _search(st, args, upper)
+        assert obj == obj_np
+        assert np.array_equal(q, q_np)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_segment_search_matches_its_numpy_twin_on_random_tables(seed):
+    from retime.guided import steady as st
+
+    t = _tiny_segment(np.random.default_rng(100 + seed), n=40, s=5, M=14)
+    args = (*t["tables"], t["lo"], t["hi"], t["kmin"], t["kmax"])
+    q_np, obj_np = st.segment_dp_numpy(*args)
+    for upper in (np.inf, obj_np * (1 + 1e-12)):
+        q, obj = _search(st, args, upper)
+        assert obj == pytest.approx(obj_np, rel=1e-12)
+        assert np.array_equal(q, q_np)
+
+
+@pytest.mark.parametrize("price", [-1.0, 0.0, 0.7])
+def test_priced_bound_is_below_every_continuation(price):
+    """The pruning's bound: from every state (q, last step) of a tiny segment, every continuation
+    with any number r of steps, scored from the formula, costs at least B[q, a] - price r; and the
+    relaxation's own warp costs what it says."""
+    import itertools
+
+    from retime.guided import steady as st
+
+    t = _tiny_segment(np.random.default_rng(7))
+    cost_into, level, rho = t["tables"]
+    kmin, kmax, end, h = t["kmin"], t["kmax"], t["M"] * t["fine"], t["h"]
+    B, total, count, path = st._priced_to_go(cost_into, level, rho, kmin, kmax, price)
+    assert _objective_from_definition(t["D"], t["S"], path * h, t["lam"]) + price * count == pytest.approx(total)
+    assert path[0] == 0 and path[-1] == end and len(path) == count + 1
+    for q in range(end):
+        for a in range(kmax - kmin + 1):
+            prev_step = kmin + a
+            if q - prev_step < 0:
+                continue
+            for r in range(1, (end - q) // kmin + 1):
+                for steps in itertools.product(range(kmin, kmax + 1), repeat=r):
+                    if q + sum(steps) != end:
+                        continue
+                    x = np.concatenate([[q - prev_step, q], q + np.cumsum(steps)]) * h
+                    # the continuation's cost: the whole path's less its first step's score
+                    rest = _objective_from_definition(t["D"], t["S"], x, t["lam"]) - cost_into[q, a]
+                    assert rest >= B[q, a] - price * r - 1e-9

@@ -27,6 +27,11 @@ def test_a_precompiled_cache_is_loaded_not_recompiled(tmp_path):
                 "--warp", str(tmp_path / "g.csv")], cache)
     assert out.returncode == 0, out.stderr
     assert "compiling" not in out.stderr, out.stderr  # every kernel came from the cache
+    # a longer clip, whose steady refinement bounds its search first (other kernels), too
+    wide = _run(["-c", cli, "guided", str(bundled_path("131_01.bvh")), "--scale", "0.6", "-o",
+                 str(tmp_path / "w.bvh")], cache)
+    assert wide.returncode == 0, wide.stderr
+    assert "compiling" not in wide.stderr, wide.stderr
     # and the same answer as compiling afresh in this process
     from retime.guided import guided_solve
     from retime.motion import load_motion

@@ -7,19 +7,21 @@ of the grid, and its score grows linearly with the speed error: on a steady moti
 Here the discrete warp is refined on a finer source grid, in the spirit of GDTW (Deriso & Boyd
 2019, time warping with a slope regulariser). Each segment between fixed frames (the ends and
 keytimes), ``M`` output steps over ``N`` grid frames, gets ``L`` points per *mean step* ``N / M``
-(``L`` from :data:`FINE`, chosen to put the original speed on a whole number of points): the
+(``L`` from :data:`FINE`, chosen so that an allowed step comes nearest the original speed): the
 uniform warp, one step of ``L`` points at every output frame, is exactly representable whatever the
 average speed, and a step of ``k`` points plays ``k / L`` times the segment's mean speed. The refined
 warp minimises::
 
-    sum_p  c(t_p, v_p)  +  a(t_p, v_p) |v_p - v_{p-1}|  +  lam rho(log v_p - log v_{p-1})
+    sum_p  c(t_p, v_p)  +  |A(t_p, v_p) - A(t_p, v_{p-1})|  +  lam rho(log v_p - log v_{p-1})
 
 with ``rho(x) = |x| + x^2``, over every step, the first and the last included (the ends are warped
 like any other frame). ``c(t, v)`` is the paper's local score of playing around grid time ``t`` at
 ``v`` grid frames per output frame: the steady triple ``F[j, v-1, v-1]``, linear in ``t`` and ``v``
-between whole values; its kink at the original speed keeps a flight at exactly its speed. ``a`` is
-the table's own price of a change of speed (:func:`change_costs`): high where the body moves fast,
-low where it stands still. ``rho`` is strictly convex, so of two warps with the same scores the
+between whole values; its kink at the original speed keeps a flight at exactly its speed.
+``A(t, v)`` is the integral over speed from 1 to v of ``a(t, u)``, the table's own price of a change
+of speed by one grid frame per output frame around speed u (:func:`change_costs`): high where the
+body moves fast, low where it stands still; a change is priced at every speed it passes through.
+``rho`` is strictly convex, so of two warps with the same scores the
 steadier wins (a walk plays uniformly), and it charges a change the same sudden or spread out: a
 short excursion (a run's 0.1 s flight) is not worth its two changes, a long one (a jump's flight)
 is. ``lam`` is ``steadiness`` times the median score of the segment's frames played uniformly: the
@@ -27,8 +29,17 @@ penalty is measured against what the reference objects to in the uniform warp, i
 feature scale and of the clip.
 
 The dynamic programme over (fine position, last step) is exact for this objective within its band:
-the whole feasible band when it is small, else a corridor around the discrete warp, re-centred on
-its own result while that touches the corridor's edge.
+the whole feasible band when it is small, else a corridor about the best bounding warp (below),
+re-centred on its own result while that touches the corridor's edge. Its inner minimum, over the previous step
+for every step at once, is over a Monge matrix (both change penalties are convex functions of a
+difference of two sorted sequences), so its minimisers are monotone and a divide-and-conquer
+search finds them exactly reading O(K log K) of the K^2 entries (K step choices). On a large band
+it first bounds the optimum: below, by a Lagrangian relaxation of the step count (a price per step,
+any number of steps: one pass over the fine positions, :func:`_priced_to_go`, the price by
+bisection), which bounds what is left from every state; above, by the best warps of narrow
+corridors about the relaxation's warp and the whole-frame warp. A state whose cost so far plus what is left exceeds the
+upper bound lies on no optimal warp and is dropped, so the search stays exact and reads a few per
+cent of the band.
 """
 
 from __future__ import annotations
@@ -41,14 +52,23 @@ from numba import njit
 
 
 INF = np.inf
-#: fine grid points per mean step of a segment: the count in this range that puts the natural
-#: speed nearest a whole number of points (10 makes both 1x and the mean exact at --scale 0.6 and 1.5)
+#: fine grid points per mean step of a segment: the count in this range that puts an allowed step
+#: nearest the natural speed (10 makes both 1x and the mean exact at --scale 0.6 and 1.5)
 FINE = range(8, 13)
 #: at most this many transitions (positions x steps x steps) per output frame in the whole band; above it
 #: the refinement searches a corridor
 FULL_BAND_STATES = 4_000_000
 #: corridor half-width around the discrete warp, in grid frames
 CORRIDOR = 24
+#: half-widths, in grid frames, of the narrow corridors whose best warps bound the wide search's objective
+BOUND_CORRIDORS = (2, 8, 20)
+#: with at most this many step choices the inner minimum reads every pair (no monotone search)
+DIRECT_STEPS = 12
+#: below this many band positions (summed over the output frames) per fine point the search runs
+#: without bounds: finding them would cost more than they save
+PRUNE_ROWS_PER_POINT = 40
+#: cuts of the step price's range for the search's bound (after the cheaper relaxation's price)
+STEP_PRICE_ITERATIONS = 6
 
 
 @dataclass
@@ -153,98 +173,404 @@ def _fine_band(lb, ub, kmin, kmax):
 
 
 @njit(cache=True)
+def _change_level(S, t, v):
+    """A(t, v) = the integral over speed from 1 to v of a(t, u) du: a (the change-cost table at
+    grid time t, linear between whole speeds, constant beyond the last) summed over the speeds a
+    change passes through, so that |A(t, v') - A(t, v)| prices a change from v to v' one grid frame
+    per output frame at a time, each at its own speed."""
+    s = S.shape[1]
+    v = max(v, 1.0)
+    total = 0.0
+    c = 1
+    lower = _bilinear(S, t, 1.0)
+    while c < s and c + 1 <= v:
+        upper = _bilinear(S, t, c + 1.0)
+        total += 0.5 * (lower + upper)
+        lower = upper
+        c += 1
+    x = v - c  # the part of the last cell (or beyond the table, where a stays at its last value)
+    if c < s:
+        upper = _bilinear(S, t, c + 1.0)
+        total += x * lower + 0.5 * x * x * (upper - lower)
+    else:
+        total += x * lower
+    return total
+
+
+@njit(cache=True)
 def _step_tables(D, S, a0, h, n_fine, kmin, kmax):
-    """(n_fine + 1, K) the two scores of a step of kmin + b fine points, by fine position q: ``c``
-    of the step that ends at q, and ``a`` (the price of a change) of the step that starts there.
-    They depend on the position and the step alone, not on the output frame, so the search reads
-    them instead of interpolating them again at every output frame whose band holds q."""
+    """The scores of the steps by fine position q, (n_fine + 1, K) each: ``c`` of the step of
+    kmin + b fine points that ends at q, and ``A`` (:func:`_change_level`) of that step's speed at q,
+    where a change from the step before it happens. They depend on the position and the step alone,
+    not on the output frame, so the search reads them instead of interpolating them again at every
+    output frame whose band holds q."""
     K = kmax - kmin + 1
     cost_into = np.empty((n_fine + 1, K))
-    change_from = np.empty((n_fine + 1, K))
+    level = np.empty((n_fine + 1, K))
     for q in range(n_fine + 1):
         for b in range(K):
             k = kmin + b
             cost_into[q, b] = _bilinear(D, a0 + (q - 0.5 * k) * h, k * h)
-            change_from[q, b] = _bilinear(S, a0 + q * h, k * h)  # the triple's middle frame is q
-    return cost_into, change_from
+            level[q, b] = _change_level(S, a0 + q * h, k * h)  # the triple's middle frame is q
+    return cost_into, level
 
 
 @njit(cache=True)
-def _segment_dp(D, cost_into, change_from, a0, h, lo, hi, kmin, kmax, lam):
+def change_penalties(kmin, kmax, lam):
+    """(K, K) lam rho(log of the ratio) of a step of kmin + b fine points after one of kmin + a, by [b, a]."""
+    K = kmax - kmin + 1
+    rho = np.empty((K, K))
+    for b in range(K):
+        for a in range(K):
+            x = math.log((kmin + b) / (kmin + a))
+            rho[b, a] = lam * (abs(x) + x * x)
+    return rho
+
+
+@njit(cache=True, inline="always")
+def _first_min(row, rho, level, b, a0, a1):
+    """(min over a in a0..a1 of row[a] + rho[b, a] + |level[b] - level[a]|, its first minimiser or -1)."""
+    best = INF
+    at = -1
+    lb = level[b]
+    for a in range(a0, a1 + 1):
+        v = row[a] + rho[b, a] + abs(lb - level[a])
+        if v < best:
+            best = v
+            at = a
+    return best, at
+
+
+@njit(cache=True)
+def _monotone_min(row, rho, level, b0, b1, val, arg, stack):
+    """For b in b0..b1: val[b] = min over a of row[a] + rho[b, a] + |level[b] - level[a]|, arg[b] the
+    first minimiser (-1 where every entry is inf).
+
+    The matrix is Monge: rho is a convex function of the difference of two sorted sequences (the
+    log steps), and so is |level[b] - level[a]| (level never decreases with the step, a >= 0), so
+    C[b, a] + C[b', a'] <= C[b, a'] + C[b', a] for b < b', a < a', and adding row[a] keeps that.
+    So the first minimiser never decreases with b, and divide and conquer finds them all exactly
+    reading O(K log K) entries instead of K^2: the middle row's minimiser splits the columns that
+    the rows above and below it need search."""
+    K = row.shape[0]
+    if K <= DIRECT_STEPS:  # few steps: reading them all costs less than the search's bookkeeping
+        for b in range(b0, b1 + 1):
+            val[b], arg[b] = _first_min(row, rho, level, b, 0, K - 1)
+        return
+    stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3] = b0, b1, 0, K - 1
+    top = 1
+    while top > 0:
+        top -= 1
+        lo_b, hi_b, lo_a, hi_a = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
+        b = (lo_b + hi_b) // 2
+        val[b], at = _first_min(row, rho, level, b, lo_a, hi_a)
+        arg[b] = at
+        if at < 0:  # no finite entry in these columns: none in any row's share of them either
+            at_lo, at_hi = lo_a, hi_a
+        else:
+            at_lo, at_hi = at, at
+        if lo_b < b:
+            stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = lo_b, b - 1, lo_a, at_hi
+            top += 1
+        if b < hi_b:
+            stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = b + 1, hi_b, at_lo, hi_a
+            top += 1
+
+
+@njit(cache=True)
+def _priced_to_go(cost_into, level, rho, kmin, kmax, price):
+    """The segment's warps with any number of steps, each step charged ``price`` more (a Lagrangian
+    relaxation of the step count; the band is implied by the count, so it goes too).
+
+    Returns B (n_fine + 1, K): B[q, a] the least such cost from fine position q, where a step of
+    kmin + a ended, to the end; and from the start (whose first step has no change to pay) the
+    least cost, its number of steps and its fine positions. Any warp of the segment that is at q
+    after p of its M steps, last step kmin + a, costs at least B[q, a] - price (M - p) from there."""
+    n_fine = cost_into.shape[0] - 1
+    K = kmax - kmin + 1
+    B = np.full((n_fine + 1, K), INF)
+    steps = np.zeros((n_fine + 1, K), dtype=np.int64)
+    nxt = np.full((n_fine + 1, K), -1, dtype=np.int64)
+    B[n_fine, :] = 0.0
+    r = np.empty(K)
+    val = np.empty(K)
+    arg = np.empty(K, dtype=np.int64)
+    stack = np.empty((2 * K + 2, 4), dtype=np.int64)
+    for q in range(n_fine - kmin, -1, -1):
+        reach = False
+        for b in range(K):
+            qn = q + kmin + b
+            r[b] = cost_into[qn, b] + price + B[qn, b] if qn <= n_fine else INF
+            reach = reach or r[b] < INF
+        if not reach:
+            continue
+        _monotone_min(r, rho, level[q], 0, K - 1, val, arg, stack)  # the penalties are symmetric in a, b
+        for a in range(K):
+            if arg[a] >= 0:
+                B[q, a] = val[a]
+                nxt[q, a] = arg[a]
+                steps[q, a] = 1 + steps[q + kmin + arg[a], arg[a]]
+    total = INF
+    first = -1
+    for b in range(K):
+        if kmin + b <= n_fine:
+            v = cost_into[kmin + b, b] + price + B[kmin + b, b]
+            if v < total:
+                total = v
+                first = b
+    if first < 0:
+        return B, total, 0, np.zeros(1, dtype=np.int64)
+    count = 1 + steps[kmin + first, first]
+    path = np.empty(count + 1, dtype=np.int64)
+    path[0] = 0
+    q = kmin + first
+    b = first
+    for i in range(1, count + 1):
+        path[i] = q
+        if i < count:
+            b2 = nxt[q, b]
+            q = q + kmin + b2
+            b = b2
+    return B, total, count, path
+
+
+@njit(cache=True)
+def _segment_dp(cost_into, level, rho, lo, hi, kmin, kmax, to_go, price, upper):
     """Exact minimiser over the band of the steady objective for one segment.
 
     Fine position q is grid time a0 + q h; a step of k fine points plays k h grid frames per output
-    frame; cost_into, change_from: :func:`_step_tables`. Returns (fine positions (m,), objective)."""
+    frame; cost_into, level: :func:`_step_tables`; rho: :func:`change_penalties`. Each
+    state (fine position, last step) of the previous output frame hands on to the states one step
+    further, all steps at once by :func:`_monotone_min`. to_go, price: :func:`_priced_to_go`'s bound
+    and its step price; upper: at least the objective of some warp in the band (inf if none is
+    known, or a margin for rounding). A state whose cost so far plus the bound on what is left
+    exceeds ``upper`` lies on no optimal warp and hands nothing on; those of an optimal warp always
+    do, so the result stays exact. Returns (fine positions (m,), objective)."""
     m = lo.shape[0]
     K = kmax - kmin + 1
-    rho = np.empty((K, K))
-    dv = np.empty((K, K))
-    for a in range(K):
-        for b in range(K):
-            x = math.log((kmin + b) / (kmin + a))
-            rho[a, b] = lam * (abs(x) + x * x)
-            dv[a, b] = abs(b - a) * h  # the change in grid frames per output frame
     offs = np.zeros(m + 1, dtype=np.int64)
     for p in range(m):
         offs[p + 1] = offs[p] + (hi[p] - lo[p] + 1) * K
-    bp = np.zeros(offs[m], dtype=np.int16)
+    bp = np.empty(offs[m], dtype=np.int16)  # read only along the optimal warp, whose entries are written
     wmax = 1
     for p in range(m):
         wmax = max(wmax, hi[p] - lo[p] + 1)
-    prev = np.full((wmax, K), INF)
-    cur = np.full((wmax, K), INF)
+    # the rows (fine positions) of the previous and the current output frame; a row is valid only if
+    # its stamp is that frame (else all inf), so that no frame clears the whole band
+    prev = np.empty((wmax, K))
+    cur = np.empty((wmax, K))
+    prev_stamp = np.full(wmax, -1, dtype=np.int64)
+    cur_stamp = np.full(wmax, -1, dtype=np.int64)
+    prev_least = np.empty(wmax)  # a valid row's least entry
+    cur_least = np.empty(wmax)
+    least_to_go = np.empty(to_go.shape[0])
+    for q in range(to_go.shape[0]):
+        least_to_go[q] = to_go[q].min()
+    val = np.empty(K)
+    arg = np.empty(K, dtype=np.int64)
+    stack = np.empty((2 * K + 2, 4), dtype=np.int64)
+    alive = np.empty(K)
     # position 1: the first step, from fine position 0, has no predecessor to change from
     for q in range(lo[1], hi[1] + 1):
         k = q - lo[0]
         if kmin <= k <= kmax:
-            prev[q - lo[1], k - kmin] = _bilinear(D, a0 + 0.5 * (q + lo[0]) * h, k * h)
+            w = q - lo[1]
+            prev[w, :] = INF
+            prev[w, k - kmin] = cost_into[q, k - kmin]
+            prev_stamp[w] = 1
+            prev_least[w] = cost_into[q, k - kmin]
     for p in range(2, m):
-        for w in range(hi[p] - lo[p] + 1):
-            q = lo[p] + w
-            for b in range(K):
-                k = kmin + b
-                qp = q - k
-                best = INF
-                arg = -1
-                if lo[p - 1] <= qp <= hi[p - 1]:
-                    row = prev[qp - lo[p - 1]]
-                    sc = change_from[qp, b]
-                    for a in range(K):
-                        v = row[a] + rho[a, b] + sc * dv[a, b]
-                        if v < best:
-                            best = v
-                            arg = a
-                if arg >= 0:
-                    best += cost_into[q, b]
-                cur[w, b] = best
-                bp[offs[p] + w * K + b] = arg
+        left = price * (m - p)  # the bound's price for the steps after this row's state
+        for wp in range(hi[p - 1] - lo[p - 1] + 1):
+            qp = lo[p - 1] + wp
+            if prev_stamp[wp] != p - 1 or not prev_least[wp] + (least_to_go[qp] - left) <= upper:
+                continue  # no warp reaches this position, or none through it can beat the bound
+            # the steps that land in this output frame's band
+            b0 = max(0, lo[p] - qp - kmin)
+            b1 = min(K - 1, hi[p] - qp - kmin)
+            if b0 > b1:
+                continue
+            row = prev[wp]
+            for a in range(K):
+                alive[a] = row[a] if row[a] + (to_go[qp, a] - left) <= upper else INF
+            _monotone_min(alive, rho, level[qp], b0, b1, val, arg, stack)
+            for b in range(b0, b1 + 1):
+                if arg[b] >= 0:
+                    q = qp + kmin + b
+                    w = q - lo[p]
+                    if cur_stamp[w] != p:
+                        cur[w, :] = INF
+                        cur_stamp[w] = p
+                        cur_least[w] = INF
+                    v = val[b] + cost_into[q, b]
+                    cur[w, b] = v
+                    cur_least[w] = min(cur_least[w], v)
+                    bp[offs[p] + w * K + b] = arg[b]
         prev, cur = cur, prev
-    last = hi[m - 1]
+        prev_stamp, cur_stamp = cur_stamp, prev_stamp
+        prev_least, cur_least = cur_least, prev_least
+    last = hi[m - 1] - lo[m - 1]
     best = INF
     bb = -1
-    for b in range(K):
-        if prev[last - lo[m - 1], b] < best:
-            best = prev[last - lo[m - 1], b]
-            bb = b
+    if prev_stamp[last] == m - 1:
+        for b in range(K):
+            if prev[last, b] < best:
+                best = prev[last, b]
+                bb = b
     q_out = np.empty(m, dtype=np.int64)
-    q_out[m - 1] = last
-    q = last
+    q_out[0] = lo[0]
+    q_out[m - 1] = hi[m - 1]
+    if bb < 0:
+        return q_out, INF
+    q = hi[m - 1]
     b = bb
     for p in range(m - 1, 1, -1):
         a = bp[offs[p] + (q - lo[p]) * K + b]
         q = q - (kmin + b)
         q_out[p - 1] = q
         b = a
-    q_out[0] = lo[0]
     return q_out, best
 
 
-def points_per_step(N, M, natural, choices=FINE) -> int:
-    """Fine points per mean step (N grid frames / M steps) that put the natural speed (``natural``
-    grid frames per output frame) nearest a whole number of points (the smallest of equals)."""
+def segment_dp_numpy(cost_into, level, rho, lo, hi, kmin, kmax):
+    """:func:`_segment_dp`'s plain NumPy twin: every (previous step, step) pair of every state,
+    vectorised per output frame, no monotone search. For the parity tests."""
+    m = len(lo)
+    K = kmax - kmin + 1
+    steps = kmin + np.arange(K)
+    prev = np.full((hi[1] - lo[1] + 1, K), np.inf)
+    q1 = np.arange(lo[1], hi[1] + 1)
+    ok = (q1 - lo[0] >= kmin) & (q1 - lo[0] <= kmax)
+    prev[ok, (q1 - lo[0] - kmin)[ok]] = cost_into[q1[ok], (q1 - lo[0] - kmin)[ok]]
+    back = []
+    for p in range(2, m):
+        q = np.arange(lo[p], hi[p] + 1)[:, None]
+        qp = q - steps[None, :]  # (W, K): where each step came from
+        inside = (qp >= lo[p - 1]) & (qp <= hi[p - 1])
+        rows = prev[np.clip(qp - lo[p - 1], 0, prev.shape[0] - 1)]  # (W, K_b, K_a)
+        lev = level[np.clip(qp, 0, len(level) - 1)]  # (W, K_b, K_a): the levels where each step starts
+        own = lev[:, np.arange(K), np.arange(K)]  # (W, K_b): the step's own level there
+        total = rows + rho[None] + np.abs(own[:, :, None] - lev)
+        total[~inside] = np.inf
+        a = np.argmin(total, axis=2)
+        best = np.take_along_axis(total, a[:, :, None], axis=2)[:, :, 0]
+        prev = np.where(np.isfinite(best), best + cost_into[q[:, 0]][:, :K], np.inf)
+        back.append(np.where(np.isfinite(best), a, -1))
+    b = int(np.argmin(prev[hi[m - 1] - lo[m - 1]]))
+    obj = float(prev[hi[m - 1] - lo[m - 1], b])
+    out = [int(hi[m - 1])]
+    q = int(hi[m - 1])
+    for p in range(m - 1, 1, -1):
+        a = int(back[p - 2][q - lo[p], b])
+        q -= kmin + b
+        out.append(q)
+        b = a
+    out.append(int(lo[0]))
+    return np.array(out[::-1]), obj
+
+
+@njit(cache=True)
+def _priced_scores(cost_into, kmin, kmax, price):
+    """(least cost, its number of steps) of :func:`_priced_to_go`'s relaxation without the change
+    penalties: K times cheaper, and its best price is near that of the whole relaxation."""
+    n_fine = cost_into.shape[0] - 1
+    K = kmax - kmin + 1
+    B = np.full(n_fine + 1, INF)
+    steps = np.zeros(n_fine + 1, dtype=np.int64)
+    B[n_fine] = 0.0
+    for q in range(n_fine - kmin, -1, -1):
+        for b in range(min(K, n_fine - q - kmin + 1)):
+            qn = q + kmin + b
+            v = cost_into[qn, b] + price + B[qn]
+            if v < B[q]:
+                B[q] = v
+                steps[q] = steps[qn] + 1
+    return B[0], steps[0]
+
+
+def _bisect_price(count_at, M, lo, hi, top, iterations):
+    """Narrow the price range [lo, hi] about the price at which ``count_at`` (a step count that falls
+    as the price rises; None where there is no warp) gives M: widened first (doubling) until its ends'
+    counts hold M or a price reaches +-top, then ``iterations`` times cut, alternately at the linear
+    guess and in half (the count falls in jumps, so each alone can stall). Returns (lo, hi)."""
+    width = hi - lo
+    hi_count, lo_count = count_at(hi), None
+    while hi_count is not None and hi_count > M and hi < top:
+        lo, lo_count = hi, hi_count  # still too many steps at this price: dearer
+        width *= 2.0
+        hi = lo + width
+        hi_count = count_at(hi)
+    if hi_count is not None and lo_count is None:
+        lo_count = count_at(lo)
+        while lo_count is not None and lo_count < M and lo > -top:
+            hi, hi_count = lo, lo_count
+            width *= 2.0
+            lo = hi - width
+            lo_count = count_at(lo)
+    for i in range(int(iterations) if hi_count is not None and lo_count is not None else 0):
+        if hi_count >= M or lo_count <= M:
+            break  # an end already gives M steps, or the range could not be widened to hold M
+        t = (lo_count - M) / (lo_count - hi_count) if i % 2 == 0 else 0.5
+        price = lo + (hi - lo) * min(max(t, 0.05), 0.95)
+        count = count_at(price)
+        if count is None or count == M:
+            break
+        if count > M:
+            lo, lo_count = price, count
+        else:
+            hi, hi_count = price, count
+    return lo, hi
+
+
+def step_price(cost_into, level, rho, kmin, kmax, M, iterations=STEP_PRICE_ITERATIONS):
+    """The step price of :func:`_priced_to_go` whose bound is best (its dual value, the relaxation's
+    least cost less price M, is the largest; at most the optimum whatever the price): the price at
+    which the relaxation without change penalties (:func:`_priced_scores`) takes M steps first, then
+    ``iterations`` cuts of a range a quarter of it wide each way for the whole relaxation's.
+    Returns (price, its bound B, the relaxation's warp as fine positions, or None if it has no
+    finite cost)."""
+    finite = cost_into[np.isfinite(cost_into)]
+    width = 4.0 * float(np.median(finite)) + 1e-6 if finite.size else 1.0
+    top = 4.0 * float(finite.max()) + 1.0 if finite.size else 1.0
+
+    def scores_count(price):
+        total, count = _priced_scores(cost_into, kmin, kmax, price)
+        return int(count) if np.isfinite(total) else None
+
+    best = None
+
+    def relax(price):
+        nonlocal best
+        B, total, count, path = _priced_to_go(cost_into, level, rho, kmin, kmax, price)
+        if np.isfinite(total) and (best is None or total - price * M > best[0]):
+            best = (total - price * M, price, B, path)
+        return count if np.isfinite(total) else None
+
+    lo, hi = _bisect_price(scores_count, M, -width, width, top, 40)
+    guess = 0.5 * (lo + hi)
+    spread = 0.25 * abs(guess) + 0.01 * width
+    _bisect_price(relax, M, guess - spread, guess + spread, top, iterations)
+    if best is None:
+        return 0.0, np.zeros((cost_into.shape[0], kmax - kmin + 1)), None
+    return best[1], best[2], best[3]
+
+
+def step_range(N, M, L, s):
+    """(kmin, kmax): the fine steps, L points per mean step of N grid frames over M output frames,
+    that play between one grid frame and the skip limit ``s`` per output frame (as the DP's)."""
+    h = N / (M * L)  # grid frames per fine point
+    return max(1, math.ceil(1.0 / h - 1e-9)), math.floor(s / h + 1e-9)
+
+
+def points_per_step(N, M, natural, s=None, choices=FINE) -> int:
+    """Fine points per mean step (N grid frames / M steps) whose allowed steps (:func:`step_range`,
+    skip limit ``s``; no upper limit if None) come nearest the natural speed (``natural`` grid frames
+    per output frame), the smallest of equals. The natural speed of a compression is one grid frame
+    per output frame, the slowest step allowed: 6.05 points a step would leave 7 (1.16x) the nearest."""
     def miss(L):
         x = natural * M * L / N
-        return abs(x - round(x))
+        kmin, kmax = step_range(N, M, L, s if s is not None else N)  # no step passes the whole segment
+        return abs(x - min(max(round(x), kmin), kmax) if kmin <= kmax else math.inf)
     return min(choices, key=lambda L: (round(miss(L), 9), L))
 
 
@@ -253,10 +579,9 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
     (fractional grid frames, objective)."""
     M = len(y) - 1
     N = a1 - a0
-    fine = points_per_step(N, M, natural)
+    fine = points_per_step(N, M, natural, s)
     h = N / (M * fine)  # grid frames per fine point
-    kmin = max(1, math.ceil(1.0 / h - 1e-9))  # at least one grid frame per output frame, as the DP
-    kmax = math.floor(s / h + 1e-9)  # at most the skip limit
+    kmin, kmax = step_range(N, M, fine, s)
     if not kmin <= fine <= kmax:  # no fine steps between 1 and s grid frames: the caller keeps y
         return None, math.inf
     lam = penalty_weight(D, a0, a1, N / M, steadiness)
@@ -266,18 +591,49 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
     lb[-1] = M * fine
     lo, hi = _fine_band(lb, ub, kmin, kmax)
     K = kmax - kmin + 1
-    cost_into, change_from = _step_tables(D, S, float(a0), h, M * fine, kmin, kmax)
-    if int((hi - lo + 1).max()) * K * K <= FULL_BAND_STATES:
-        q, obj = _segment_dp(D, cost_into, change_from, float(a0), h, lo, hi, kmin, kmax, float(lam))
-        return (a0 + q * h, float(obj)) if np.isfinite(obj) else (None, math.inf)
-    centre = (np.asarray(y, dtype=float) - a0) / h
-    radius = corridor / h
-    for _ in range(max_passes):
+    cost_into, level = _step_tables(D, S, float(a0), h, M * fine, kmin, kmax)
+    rho = change_penalties(kmin, kmax, float(lam))
+
+    if int((hi - lo + 1).sum()) < PRUNE_ROWS_PER_POINT * M * fine:  # a small band: search it all at once
+        price, to_go, priced_path = 0.0, np.zeros((M * fine + 1, K)), None
+    else:
+        price, to_go, priced_path = step_price(cost_into, level, rho, kmin, kmax, M)
+
+    def solve(blo, bhi, upper=math.inf):
+        margin = 1e-9 * (abs(upper) + abs(price) * M + 1.0)  # rounding in the bound must not cut the optimum
+        return _segment_dp(cost_into, level, rho, blo, bhi, kmin, kmax, to_go, price, upper + margin)
+
+    def around(centre, radius):
+        """The band cut to ``radius`` fine points about fine positions ``centre`` (None: no warp in it)."""
         blo, bhi = _fine_band(np.maximum(lo, np.floor(centre - radius).astype(np.int64)),
                               np.minimum(hi, np.ceil(centre + radius).astype(np.int64)), kmin, kmax)
-        if np.any(blo > bhi):  # the corridor holds no warp with these steps: the whole band
-            blo, bhi = lo, hi
-        q, obj = _segment_dp(D, cost_into, change_from, float(a0), h, blo, bhi, kmin, kmax, float(lam))
+        return None if np.any(blo > bhi) else (blo, bhi)
+
+    # upper bounds first: the best warps in narrow corridors, cheap to find and close to the
+    # optimum, so that the wide search drops nearly every state. The first corridors lie about the
+    # relaxation's warp (stretched to M steps; its step count can be far from M) and about the
+    # whole-frame warp; the next ones about the best warp so far, each searched with the best
+    # objective so far as its bound
+    whole_frame = (np.asarray(y, dtype=float) - a0) / h
+    q, obj = None, math.inf
+    if priced_path is not None:
+        stretched = np.interp(np.linspace(0.0, len(priced_path) - 1, M + 1), np.arange(len(priced_path)), priced_path)
+        for i, radius in enumerate(r for r in BOUND_CORRIDORS if r < corridor):
+            for centre in (stretched, whole_frame) if i == 0 else (q.astype(float),) if q is not None else ():
+                if (narrow := around(centre, radius / h)) is not None:
+                    q_try, obj_try = solve(*narrow, obj)
+                    if obj_try < obj:
+                        q, obj = q_try, obj_try
+    centre = q.astype(float) if q is not None else whole_frame
+    if int((hi - lo + 1).max()) * K * K <= FULL_BAND_STATES:
+        q, obj = solve(lo, hi, obj)
+        return (a0 + q * h, float(obj)) if np.isfinite(obj) else (None, math.inf)
+    radius = corridor / h
+    for _ in range(max_passes):
+        band = around(centre, radius)
+        blo, bhi = band if band is not None else (lo, hi)  # the corridor holds no warp: the whole band
+        # the last warp found lies in this corridor (it is centred on it): its objective bounds this one's
+        q, obj = solve(blo, bhi, obj if band is not None else math.inf)
         touches = np.any(((q == blo) & (blo > lo)) | ((q == bhi) & (bhi < hi)))
         if not touches or not np.isfinite(obj):
             break
