@@ -11,6 +11,7 @@ import bpy
 import numpy as np
 
 from . import apply, armature
+from .options import output_frames as _output_frames
 from .runner import BackgroundRunOperator, RetimeAddonError, Run, retime_executable
 
 METHODS = [
@@ -54,15 +55,6 @@ def marker_keytimes(scene, start, end, fps):
 def _typed(value):
     """A float property as the user typed it: Blender keeps them in single precision (0.7 is 0.699999988)."""
     return f"{value:.7g}"
-
-
-def _output_frames(method, duration, scale, n_source, fps):
-    """The output's frame count when the duration is set (None when the method chooses it)."""
-    if scale > 0:
-        return int(np.floor((n_source - 1) * scale + 1e-6)) + 1
-    if duration > 0:
-        return max(1, int(round(duration * fps))) + 1
-    return n_source if method == "guided" else None
 
 
 def animated_armature(context, verb):

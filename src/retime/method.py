@@ -26,7 +26,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 from .errors import RetimeError
-from .warp import TimingCurve, scale_warp, snap_duration
+from .warp import TimingCurve, output_duration
 
 #: method name -> module implementing the contract (imported on first use: a method's compiled
 #: kernels load only when it is asked for)
@@ -59,12 +59,9 @@ class Request:
         object.__setattr__(self, "keytimes", tuple((float(s), float(t)) for s, t in self.keytimes))
 
     def output_duration(self, motion) -> float | None:
-        """The requested duration on the output frame grid (None: not requested)."""
-        if self.duration is not None:
-            return snap_duration(float(self.duration), motion.fps)
-        if self.scale is not None:
-            return scale_warp(motion.duration, float(self.scale), motion.fps).duration
-        return None
+        """The requested duration on the output frame grid (None: not requested, a free duration);
+        :func:`retime.warp.output_duration` is the rule."""
+        return output_duration(motion.duration, motion.fps, self.duration, self.scale)
 
     def settings_or(self, settings_type):
         """The request's settings, checked to be the method's own type (its defaults when None)."""

@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import RetimeError
 from ..io_util import all_or_none
 from ..motion import save_bvh
-from ..warp import apply_timing, snap_duration
+from ..warp import apply_timing, output_duration
 from .methods import METHODS, Clip, ControlPoint, Job, Solution, check_params, default_params
 
 MAX_POINTS = 200
@@ -226,7 +226,7 @@ class Session:
             else:
                 raise RetimeError(f"duration {duration:g} s is outside {lo:.3g} .. {hi:.3g} s "
                                   f"(at most {MAX_SPEED:g} times faster or slower than the source)")
-        T = snap_duration(duration, self.fps)
+        T = output_duration(S, self.fps, duration=duration)  # the rule every door follows
         old = points[-1].t
         if scale_inner:
             for p in points[1:-1]:

@@ -35,7 +35,7 @@ from retime.guided.postprocess import moving_average
 from retime.guided.problem import SolveStats, WarpProblem, solve_exact
 from retime.guided.steady import steady_warp
 from retime.motion import Motion, forward_kinematics
-from retime.warp import TimingCurve, check_keytimes, keytime_warp, scale_warp, snap_duration
+from retime.warp import TimingCurve, check_keytimes, keytime_warp, output_duration
 
 #: local scores: "steady" (sub-frame steps, a convex penalty on speed changes) and "paper" (Hsu et al. eq. 2)
 SCORES = ("steady", "paper")
@@ -292,12 +292,8 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
             raise RetimeError("--fast (the coarse-to-fine search) needs a fixed output duration, and a free duration "
                               "is searched exactly; drop --fast or --free")
         T = None
-    elif scale is not None:
-        T = scale_warp(S, float(scale), motion.fps).duration
-    elif duration is not None:
-        if not duration > 0:
-            raise RetimeError(f"duration must be positive, got {duration}")
-        T = snap_duration(float(duration), motion.fps)
+    elif scale is not None or duration is not None:
+        T = output_duration(S, motion.fps, duration, scale)
     else:
         T = S
     keys = check_keytimes(keytimes, S, T if T is not None else S) if keytimes else []

@@ -50,7 +50,7 @@ import numpy as np
 
 from ..errors import RetimeError
 from ..motion.frame import up_vector
-from ..warp import TimingCurve, snap_duration
+from ..warp import TimingCurve, output_duration, snap_duration
 from .constants import DEFAULT_SMOOTHING, MAX_GRAVITY, STANDARD_GRAVITY, G
 from .fastest import fastest_timing
 from .globalstart import global_start, soften
@@ -210,14 +210,7 @@ def physics_warp(motion, duration=None, scale=None, gravity=None, mass_factors=N
         raise RetimeError(f"unknown start {start!r} (use 'global' or 'uniform')")
     fps = float(motion.fps)
     S = motion.duration
-    if scale is not None:
-        if duration is not None:
-            raise RetimeError("give a duration or a scale, not both")
-        duration = S * float(scale)
-    if duration is not None:
-        if not duration > 0:
-            raise RetimeError(f"duration must be positive, got {duration}")
-        duration = snap_duration(duration, fps)
+    duration = output_duration(S, fps, duration, scale)  # the rule every door follows
     check_keytimes(keytimes, S, duration)  # before the dynamics: fail fast
     from ..jit import compile_watch, stderr_if
 

@@ -151,7 +151,7 @@ def run_demo(
     from retime.motion import load_motion, save_bvh
     from retime.viz.plot import plot_timing
     from retime.viz.progress import progress
-    from retime.warp import apply_timing, snap_duration
+    from retime.warp import apply_timing, output_duration
 
     t_start = time.perf_counter()
     if not (0 < scale < 10):
@@ -176,7 +176,7 @@ def run_demo(
                 raise RetimeError(f"--frames {a}:{b}: the clip has frames 0 to {motion.n_frames - 1}; "
                                   "give FIRST:LAST with FIRST < LAST")
             motion = motion.frames(slice(a, b + 1))
-        duration = snap_duration(motion.duration * scale, motion.fps)
+        duration = output_duration(motion.duration, motion.fps, scale=scale)  # as --scale gives it
         flight = flight_phase(motion)
         bar.update(1)
 
