@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 
 from . import apply, armature
-from .options import output_frames as _output_frames
+from .options import DEFAULTS, output_frames as _output_frames
 from .runner import BackgroundRunOperator, RetimeAddonError, Run, retime_executable
 
 METHODS = [
@@ -267,10 +267,10 @@ class RETIME_OT_retime(BackgroundRunOperator, bpy.types.Operator):
     reference: bpy.props.StringProperty(name="Reference", description="Guided: the action whose timing to imitate "
                                         "(empty: the action itself)")
     blend: bpy.props.FloatProperty(name="Reference Influence", description="Guided: 0 plays the smooth spline "
-                                   "through the keytimes, 1 the guided warp (Hsu et al. sec. 5)", default=1.0,
+                                   "through the keytimes, 1 the guided warp (Hsu et al. sec. 5)", default=DEFAULTS["blend"],
                                    min=0.0, max=1.0, subtype="FACTOR")
-    gravity_scale: bpy.props.FloatProperty(name="Gravity", description="Physics: gravity times this", default=1.0,
-                                           min=0.01, max=100.0)
+    gravity_scale: bpy.props.FloatProperty(name="Gravity", description="Physics: gravity times this",
+                                           default=DEFAULTS["gravity_scale"], min=0.01, max=100.0)
     mass: bpy.props.StringProperty(name="Mass Factors", description="Physics: BONE=FACTOR, comma separated "
                                    "(e.g. lfemur=10)")
 

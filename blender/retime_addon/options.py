@@ -4,6 +4,10 @@ so the add-on cannot import retime): the output's frame count, by retime's one r
 checks both against retime itself, outside Blender."""
 import math
 
+#: retime's own defaults for the options the panel and the operator offer (retime.guided.method.Settings'
+#: blend; physics' standard gravity, a gravity scale of 1)
+DEFAULTS = {"blend": 1.0, "gravity_scale": 1.0}
+
 
 def output_frames(method, duration, scale, n_source, fps):
     """The output's frame count when the duration is set (None when the method chooses it): a scale

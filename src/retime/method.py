@@ -135,6 +135,16 @@ def solve(name: str, motion, request: Request | None = None) -> Result:
     return module(name).solve(motion, request)
 
 
+def settings_from(settings_type, options: dict):
+    """A method's ``Settings`` from keyword options (what the keyword wrappers such as
+    :func:`retime.physics.physics_warp` take), unknown names refused in one line."""
+    known = {f.name for f in fields(settings_type)}
+    unknown = sorted(set(options) - known)
+    if unknown:
+        raise RetimeError(f"unknown option {unknown[0]!r}; {settings_type.__module__} takes {', '.join(sorted(known))}")
+    return settings_type(**options)
+
+
 def settings_record(settings, leave_out=()) -> dict:
     """A method's settings for its report, by reference (``asdict`` would deep-copy a reference
     motion or a contact table only to drop it)."""

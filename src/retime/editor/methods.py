@@ -21,7 +21,10 @@ from typing import Callable, Iterator
 import numpy as np
 
 from ..errors import RetimeError
+from ..guided.method import Settings as GuidedSettings
 from ..method import Request, solve
+from ..physics.constants import G
+from ..physics.method import OBJECTIVES, Settings as PhysicsSettings
 from ..warp import TimingCurve
 
 
@@ -190,20 +193,20 @@ class GuidedMethod(Method):
                    "best match the reference, by exact dynamic programming (Hsu et al. 2007). Points you move or add "
                    "become keytimes; unlocked points follow the solution.")
     edits_are_keytimes = True
+    _d = GuidedSettings()  # the defaults are Settings'
     params = (
         Param("reference", "Reference", "choice", "self",
               choices=(("self", "the motion itself (keep its timing)"), ("reference", "the --reference motion"))),
-        Param("max_skip", "Skip limit", "number", 8.0, 1.0, 32.0, 1.0, "frames",
+        Param("max_skip", "Skip limit", "number", float(_d.max_skip), 1.0, 32.0, 1.0, "frames",
               help="most analysis frames one output frame may advance (Hsu §3.1)"),
-        Param("neighbors", "Neighbours", "number", 3.0, 1.0, 10.0, 1.0, help="k nearest reference features (Hsu §4.3)"),
-        Param("fast", "Coarse-to-fine", "bool", False, help="the heuristic of Hsu §3.3 instead of the exact search"),
-        Param("blend", "Reference influence", "slider", 1.0, 0.0, 1.0, 0.05,
+        Param("neighbors", "Neighbours", "number", float(_d.neighbors), 1.0, 10.0, 1.0,
+              help="k nearest reference features (Hsu §4.3)"),
+        Param("fast", "Coarse-to-fine", "bool", _d.fast, help="the heuristic of Hsu §3.3 instead of the exact search"),
+        Param("blend", "Reference influence", "slider", _d.blend, 0.0, 1.0, 0.05,
               help="0: the smooth spline through the keytimes; 1: the guided warp; between: a mix (Hsu §5)"),
     )
 
     def solve(self, job):
-        from ..guided.method import Settings
-
         params = job.params
         reference = None
         if params.get("reference") == "reference":
@@ -211,9 +214,9 @@ class GuidedMethod(Method):
                 raise RetimeError("no reference motion: start the editor with --reference REF to use one")
             reference = self.clip.reference
         keys = keytimes_of(job.points, locked_only=True)
-        settings = Settings(reference=reference, max_skip=int(params.get("max_skip", 8)),
-                            neighbors=int(params.get("neighbors", 3)), fast=bool(params.get("fast", False)),
-                            blend=float(params.get("blend", Settings.blend)))
+        given = {k: type(getattr(self._d, k))(params[k]) for k in ("max_skip", "neighbors", "fast", "blend")
+                 if k in params}
+        settings = GuidedSettings(reference=reference, **given)
         result = solve("guided", self.clip.motion, Request(duration=job.duration, keytimes=keys, settings=settings))
         curve = result.curve
         info = {"keytimes": len(keys), "objective": result.info["objective"], "exact": result.info["exact"]}
@@ -246,6 +249,7 @@ class PhysicsMethod(Method):
     description = ("The timing that keeps the motion physically plausible (contact forces, joint torques) for the "
                    "new duration, keytimes, gravity or masses (McCann et al. 2006). Points move vertically.")
     point_axes = "s"
+    _d = PhysicsSettings()  # the defaults are Settings'
     MAX_ITER = 300
     RUN_SECONDS = 2.0
     QUICK_SECONDS = 0.06
@@ -255,12 +259,12 @@ class PhysicsMethod(Method):
     def param_specs(cls, clip):
         parts = [("none", "none (all masses as estimated)")] + [(n, f"{n} and below") for n in _limb_roots(clip)]
         return (
-            Param("gravity", "Gravity", "number", 9.81, 0.5, 40.0, 0.1, "m/s²", help="strength of gravity (down)"),
-            Param("objective", "Objective", "choice", "match",
-                  choices=(("match", "match the original torques"), ("minimize", "minimize torques"))),
+            Param("gravity", "Gravity", "number", G, 0.5, 40.0, 0.1, "m/s²", help="strength of gravity (down)"),
+            Param("objective", "Objective", "choice", cls._d.objective,
+                  choices=tuple(zip(OBJECTIVES, ("match the original torques", "minimize torques")))),
             Param("mass_part", "Heavier / lighter part", "choice", "none", choices=tuple(parts)),
             Param("mass_factor", "Mass factor", "number", 1.0, 0.1, 10.0, 0.1, "×", help="that part's mass times this"),
-            Param("alpha", "Feasibility weight", "number", 10.0, 0.1, 10000.0, 1.0,
+            Param("alpha", "Feasibility weight", "number", cls._d.alpha, 0.1, 10000.0, 1.0,
                   help="α of Eq. 14 (torque matching has weight 1)"),
         )
 
@@ -273,8 +277,9 @@ class PhysicsMethod(Method):
         self.prepared = None
 
     def _key(self, params):
-        return (float(params.get("gravity", 9.81)), params.get("objective", "match"), params.get("mass_part", "none"),
-                float(params.get("mass_factor", 1.0)), float(params.get("alpha", 10.0)))
+        return (float(params.get("gravity", G)), params.get("objective", self._d.objective),
+                params.get("mass_part", "none"), float(params.get("mass_factor", 1.0)),
+                float(params.get("alpha", self._d.alpha)))
 
     def _build(self, job, key):
         from ..physics.api import make_problem  # noqa: PLC0415
@@ -417,8 +422,8 @@ def _physics_prepared(clip, key, status, gone=lambda: False):
             root = sk.index(part)
             masses = {sk.names[j]: factor for j in range(sk.n_joints) if _descends(sk.parents, j, root)}
         try:
-            out = prepare(clip.motion, gravity=(0.0, -gravity, 0.0), mass_factors=masses, objective=objective,
-                          alpha=alpha, terms=terms, cancel=gone)
+            settings = PhysicsSettings(mass_factors=masses or {}, objective=objective, alpha=alpha)
+            out = prepare(clip.motion, (0.0, -gravity, 0.0), settings, terms=terms, cancel=gone)
         except BaseException:  # failed or cancelled: nothing cached, so no lock kept for it either
             with _CACHE_LOCK:
                 _SETTING_LOCKS.pop(cache_key, None)

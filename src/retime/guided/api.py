@@ -31,14 +31,12 @@ from scipy.interpolate import CubicSpline
 from retime.errors import RetimeError
 from retime.guided.features import FeatureWeights, compact_columns, lowpass, positions_in_root_frame
 from retime.guided.heuristic import solve_heuristic, solve_upper_bound
+from retime.guided.method import SCORES  # noqa: F401 (the scores' names, where callers found them)
 from retime.guided.postprocess import moving_average
 from retime.guided.problem import SolveStats, WarpProblem, solve_exact
 from retime.guided.steady import steady_warp
 from retime.motion import Motion, forward_kinematics
 from retime.warp import TimingCurve, check_keytimes, keytime_warp, output_duration
-
-#: local scores: "steady" (sub-frame steps, a convex penalty on speed changes) and "paper" (Hsu et al. eq. 2)
-SCORES = ("steady", "paper")
 
 #: above this many DP states the exact solver first runs the heuristic for an upper bound and
 #: prunes the band with Lagrangian bounds (exact either way)
@@ -223,12 +221,13 @@ def _shortest(src, dst, pos, ups, A, s, T):
 
 
 def guided_solve(motion: Motion, reference: Motion | None = None, duration: float | None = None,
-                 scale: float | None = None, free: bool = False, keytimes=(), max_skip: int = 8,
-                 neighbors: int = 3, fast: bool = False, analysis_fps: float = 30.0,
-                 weights: FeatureWeights | None = None, prefilter: float = 0.1, upsample: int | None = None,
-                 smoothing: int = 5, knn: str = "exact", eps: float = 0.0, quiet: bool = True,
-                 score: str | None = None, steadiness: float | None = None, blend: float | None = None) -> GuidedResult:
+                 scale: float | None = None, free: bool = False, keytimes=(), quiet: bool = True,
+                 **options) -> GuidedResult:
     """Guided time warp of ``motion``; returns a :class:`GuidedResult` (``.curve`` is the timing curve).
+
+    A thin keyword wrapper over ``retime.method.solve("guided", ...)``: ``options`` are the fields of
+    :class:`retime.guided.method.Settings` (``max_skip``, ``neighbors``, ``fast``, ``score``, ``blend``,
+    ...), which also holds their defaults and meanings.
 
     motion: the input. reference: the motion whose timing to imitate (default: ``motion`` itself,
     which preserves its natural timing); it must have the same skeleton.
@@ -236,50 +235,31 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
     long), or chosen by the optimisation (the paper's unconstrained search, V8). With none of
     them the output lasts as long as the input.
     keytimes: [(source s, output s), ...] that the warp passes through exactly.
-    max_skip: skip limit s, the most grid frames one output frame may advance (the fastest
-    playback is ``max_skip / upsample`` times the original speed).
-    neighbors: k of the k-nearest-neighbour local score.
-    fast: coarse-to-fine heuristic instead of the exact search.
-    analysis_fps: rate of the search (30 Hz in the paper); the curve is in seconds whatever it is.
-    weights: :class:`FeatureWeights` of pose, velocity and acceleration.
-    prefilter: width of the box low-pass filter on joint positions (s).
-    upsample: grid frames per analysis frame (default: 1 for compressions with the input as its own
-    reference, enough for at least 2 per output frame otherwise, 4 for ``free`` with a reference).
-    smoothing: moving-average window of the warp, in output frames at the analysis rate (1 = none).
-    knn: "exact" or "approx" (KD-tree with relative error ``eps``).
-    score: "steady" (the paper's scores on sub-frame steps plus a convex penalty on speed changes,
-    :mod:`retime.guided.steady`: a steady motion plays at a steady speed) or "paper" (the paper's
-    mean distances on whole grid frames).
-    steadiness: weight of the steady objective's speed-change penalty.
-    blend: the reference's influence, 0 (the keytime spline warp,
-    :func:`retime.warp.keytime_warp` with ``smooth``) to 1 (the guided warp); in between the
-    source times are mixed linearly. None for any of these: :class:`retime.guided.method.Settings`.
+    quiet: no stage messages on stderr (``Settings.progress`` the other way round).
     """
-    t_start = time.perf_counter()
     from retime.guided.method import Settings
+    from retime.method import Request, settings_from, solve
 
-    score = Settings.score if score is None else str(score)
-    steadiness = Settings.steadiness if steadiness is None else float(steadiness)
-    blend = Settings.blend if blend is None else float(blend)
-    if score not in SCORES:
-        raise RetimeError(f"unknown score {score!r}: use one of {', '.join(SCORES)}")
-    if not 0.0 <= blend <= 1.0:
-        raise RetimeError(f"--blend must be between 0 and 1, got {blend:g}")
-    if not (steadiness >= 0 and math.isfinite(steadiness)):
-        raise RetimeError(f"the steadiness must be a finite number >= 0, got {steadiness:g}")
+    if free and (duration is not None or scale is not None):
+        raise RetimeError("give only one of duration, scale and free")
+    settings = settings_from(Settings, dict(options, reference=reference, free=bool(free), progress=not quiet))
+    return solve("guided", motion, Request(duration, scale, keytimes, settings)).detail
+
+
+def guided_result(motion: Motion, settings, request) -> GuidedResult:
+    """The guided warp of ``motion`` for a :class:`retime.method.Request` and guided's ``settings``
+    (:func:`retime.guided.method.solve` reports it; see the module docstring for the pipeline)."""
+    t_start = time.perf_counter()
+    st = settings
+    reference, free, fast, keytimes = st.reference, bool(st.free), bool(st.fast), request.keytimes
+    score, steadiness, blend = st.score, float(st.steadiness), float(st.blend)
+    s, neighbors, A = int(st.max_skip), int(st.neighbors), float(st.analysis_fps)
+    prefilter, upsample, smoothing, knn, eps = st.prefilter, st.upsample, st.smoothing, st.knn, st.eps
     if motion.n_frames < 2:
         raise RetimeError("a single frame has no timing to change")
-    s = int(max_skip)
-    if not 1 <= s <= 255:
-        raise RetimeError(f"--max-skip must be between 1 and 255, got {max_skip}")
-    if int(neighbors) < 1:
-        raise RetimeError(f"--neighbors must be at least 1, got {neighbors}")
-    A = float(analysis_fps)
-    if not A > 0:
-        raise RetimeError(f"the analysis rate must be positive, got {analysis_fps}")
-    if sum(v is not None and v is not False for v in (duration, scale)) + bool(free) > 1:
+    if free and (request.duration is not None or request.scale is not None):
         raise RetimeError("give only one of duration, scale and free")
-    weights = weights or FeatureWeights()
+    weights = st.weights or FeatureWeights()
     self_ref = reference is None or reference is motion
     reference = motion if self_ref else reference
     if not self_ref:
@@ -292,10 +272,9 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
             raise RetimeError("--fast (the coarse-to-fine search) needs a fixed output duration, and a free duration "
                               "is searched exactly; drop --fast or --free")
         T = None
-    elif scale is not None or duration is not None:
-        T = output_duration(S, motion.fps, duration, scale)
     else:
-        T = S
+        T = request.output_duration(motion)
+        T = S if T is None else T
     keys = check_keytimes(keytimes, S, T if T is not None else S) if keytimes else []
     if free:
         src, dst, pos = [0.0, S], [0.0, S], [0, max(1, int(round(S * A)))]
@@ -329,9 +308,9 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
         raise RetimeError(f"the reference is {reference.duration:.3g} s long: at {A:g} Hz that is "
                           f"{z.shape[0]} frame(s), and the local score needs at least 3")
     m = None if free else pos[-1] + 1
-    problem = WarpProblem(x, z, A, m, fixed, s, int(neighbors), weights, knn, float(eps))
+    problem = WarpProblem(x, z, A, m, fixed, s, neighbors, weights, knn, float(eps))
     stats = SolveStats()
-    progress = _Progress(quiet)
+    progress = _Progress(not st.progress)
     if free:
         progress.say("scoring and searching (free duration)")
         sol, F, stats = solve_exact(problem, stats=stats)
@@ -392,7 +371,7 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
         curve = blended(spline, curve, blend, motion.fps, [t for _, t in keys])
     stats.extra["total_s"] = time.perf_counter() - t_start
     return GuidedResult(curve, raw, objective, exact, frames, out_t, src_t, n, len(frames),
-                        z.shape[0], s, int(neighbors), A, ups, stats)
+                        z.shape[0], s, neighbors, A, ups, stats)
 
 
 def blended(spline: TimingCurve, guided: TimingCurve, weight: float, fps: float, keys_out=()) -> TimingCurve:
@@ -409,8 +388,7 @@ def blended(spline: TimingCurve, guided: TimingCurve, weight: float, fps: float,
 
 
 def guided_warp(motion: Motion, reference: Motion | None = None, duration: float | None = None,
-                scale: float | None = None, free: bool = False, keytimes=(), max_skip: int = 8,
-                neighbors: int = 3, fast: bool = False, analysis_fps: float = 30.0, **options) -> TimingCurve:
+                scale: float | None = None, free: bool = False, keytimes=(), **options) -> TimingCurve:
     """The guided timing curve of ``motion`` (output seconds -> source seconds).
 
     Same arguments as :func:`guided_solve` (which also returns the objective, the chosen frames
@@ -424,8 +402,7 @@ def guided_warp(motion: Motion, reference: Motion | None = None, duration: float
         curve = guided_warp(jump, duration=0.6 * jump.duration)  # keeps the flight's speed
         shorter = apply_timing(jump, curve)
     """
-    return guided_solve(motion, reference, duration, scale, free, keytimes, max_skip, neighbors, fast,
-                        analysis_fps, **options).curve
+    return guided_solve(motion, reference, duration, scale, free, keytimes, **options).curve
 
 
 class _Progress:

@@ -39,7 +39,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
 
 from retime.errors import RetimeError
 
@@ -80,6 +79,8 @@ def lowpass(values: np.ndarray, width: int) -> np.ndarray:
     width = int(width)
     if width <= 1 or values.shape[0] < 2:
         return values.copy()
+    from scipy.ndimage import uniform_filter1d  # here: the command line reads FeatureWeights without SciPy
+
     return uniform_filter1d(values, size=width, axis=0, mode="nearest")
 
 
