@@ -41,8 +41,8 @@ def test_strip_agrees_with_the_curve_tested_as_any_curve(session):
     feas = np.asarray(sol.feasibility)
     assert feas.shape == (sol.curve.n_frames(session.fps),)
     assert sol.info["feasible_fraction"] == pytest.approx(np.mean(feas == 1.0), abs=1e-4)
-    _, pd, regions, _ = session.adapter("physics").prepared
-    other = curve_feasibility(sol.curve, pd, regions, session.fps)
+    shared = session.adapter("physics").rs.shared
+    other = curve_feasibility(sol.curve, shared.dynamics, shared.regions, session.fps)
     assert np.mean(other.inside == (feas == 1.0)) >= 0.95
     # outside the region the shade falls with the residual
     out = ~other.inside & (feas < 1.0)

@@ -13,7 +13,8 @@ A method is one module (``retime.linear.method``, ``retime.guided.method``,
 
 * ``NAME``: what the command line and the editor call it;
 * ``Settings``: a dataclass of the method's own options, every field with a default;
-* ``solve(motion, request) -> Result``.
+* ``solve(motion, request) -> Result``;
+* optionally ``session(motion, request, ...)``: a live session for an editor (:func:`session`).
 
 Adding a method is writing such a module and naming it in :data:`METHODS`.
 The command line, the demo, the editor and the batch runner call methods only through here.
@@ -133,6 +134,18 @@ def solve(name: str, motion, request: Request | None = None) -> Result:
     """Retime ``motion`` with method ``name`` (see the module docstring)."""
     request = Request() if request is None else request
     return module(name).solve(motion, request)
+
+
+def session(name: str, motion, request: Request | None = None, **options):
+    """A live session of method ``name`` on ``motion`` for an editor: edits of the curve's control
+    points and re-convergence from the current solution, for the methods that keep state between
+    edits (``retime.physics.method.session``; ``options``: what that method's session takes, e.g. the
+    ``shared`` computations of an earlier session)."""
+    request = Request() if request is None else request
+    mod = module(name)
+    if not hasattr(mod, "session"):
+        raise RetimeError(f"{name} has no live session: each edit is solved again with solve()")
+    return mod.session(motion, request, **options)
 
 
 def settings_from(settings_type, options: dict):

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import RetimeError
 from ..guided.method import Settings as GuidedSettings
-from ..method import Request, solve
+from ..method import Request, session, solve
 from ..physics.constants import G
 from ..physics.method import OBJECTIVES, Settings as PhysicsSettings
 from ..warp import TimingCurve
@@ -274,7 +274,6 @@ class PhysicsMethod(Method):
         self.key = None
         self.seen = None  # the session version whose edits rs reflects
         self.temp_lock = None  # index locked only because the user is holding it
-        self.prepared = None
 
     def _key(self, params):
         return (float(params.get("gravity", G)), params.get("objective", self._d.objective),
@@ -282,17 +281,21 @@ class PhysicsMethod(Method):
                 float(params.get("alpha", self._d.alpha)))
 
     def _build(self, job, key):
-        from ..physics.api import make_problem  # noqa: PLC0415
-        from ..physics.optimize import RetimingSession  # noqa: PLC0415
-
-        terms_pd_regions_obj = _physics_prepared(self.clip, key, job.status, job.gone)
-        self.prepared = terms_pd_regions_obj
-        obj = terms_pd_regions_obj[3]  # shared by the sessions: its lookup hints are each problem's own
         keytimes = {(round(p.s, 9), round(p.t, 9)) for p in job.points[1:-1] if p.locked}
         keytimes = sorted(keytimes | {(round(a, 9), round(b, 9)) for a, b in job.keytimes})
-        problem = make_problem(obj, self.clip.motion.duration, job.duration, keytimes)
-        self.rs = RetimingSession(problem, fps=self.clip.motion.fps)
+        request = Request(duration=job.duration, keytimes=keytimes, settings=self._settings(key))
+        self.rs = _physics_session(self.clip, request, job.status, job.gone)
         self.key, self.temp_lock = key, None
+
+    def _settings(self, key):
+        """The physics Settings of the page's controls: gravity is a strength down the clip's up axis."""
+        gravity, objective, part, factor, alpha = key
+        masses = {}
+        if part != "none" and factor != 1.0:
+            sk = self.clip.motion.skeleton
+            root = sk.index(part)
+            masses = {sk.names[j]: factor for j in range(sk.n_joints) if _descends(sk.parents, j, root)}
+        return PhysicsSettings(gravity_scale=gravity / G, mass_factors=masses, objective=objective, alpha=alpha)
 
     def _replay(self, ops):
         rs = self.rs
@@ -310,7 +313,7 @@ class PhysicsMethod(Method):
                 if self.temp_lock is not None and self.temp_lock != i:
                     self._let_go()
                 hold = bool(op.get("hold"))
-                was_locked = i in rs.problem.locks
+                was_locked = rs.is_locked(i)
                 rs.move(i, op["s"], lock=hold)
                 if hold and not was_locked:
                     self.temp_lock = i
@@ -377,9 +380,7 @@ class PhysicsMethod(Method):
                "keytimes": len(rs.keytimes), "constraint_violation": info.constraint_violation}
         feas = None
         if final:
-            from ..physics.feasibility import spline_feasibility
-
-            found = spline_feasibility(rs.spline, self.prepared[1], self.prepared[2], fps)
+            found = rs.feasibility(fps)
             feas = strip_shade(found.residual, found.tol)
             out["feasible_fraction"] = round(found.fraction, 4)
         return Solution(curve, points=pts, feasibility=feas, info=out, final=final, keytimes=list(rs.keytimes))
@@ -392,38 +393,34 @@ def strip_shade(residual, tol):
     return np.where(r <= tol, 1.0, np.clip(1.0 - np.log10(np.maximum(r, tol) / tol) / 2.0, 0.0, 0.95))
 
 
-_PHYSICS_CACHE: dict = {}  # (id(motion), key) -> (terms, pd, regions, obj); a few entries
+_PHYSICS_CACHE: dict = {}  # (id(motion), settings) -> a session's .shared (retime.physics.method.Shared); a few
 _CACHE_LOCK = threading.Lock()  # guards the cache and the per-setting locks, never a computation
 _SETTING_LOCKS: dict = {}
 
 
-def _physics_prepared(clip, key, status, gone=lambda: False):
-    """Dynamics, regions and objective for a clip and setting: computed once, shared by sessions.
-    Different settings compute side by side (each computation owns its solver state); one
-    setting is computed by one thread while the others wait for it. ``gone``: the asking
-    session's tab has closed or the editor is stopping; the computation then stops."""
-    from ..physics.api import prepare  # noqa: PLC0415
-
-    gravity, objective, part, factor, alpha = key
-    cache_key = (id(clip.motion), key)
+def _physics_session(clip, request, status, gone=lambda: False):
+    """A live physics session of the clip (:func:`retime.method.session`). Its dynamics, regions and
+    objective (``.shared``) are computed once per clip and setting and shared by the sessions that
+    follow. Different settings compute side by side (each computation owns its solver state); one
+    setting is computed by one thread while the others wait for it. ``gone``: the asking session's
+    tab has closed or the editor is stopping; the computation then stops."""
+    cache_key = (id(clip.motion), _hashable(request.settings))
     with _CACHE_LOCK:
-        if cache_key in _PHYSICS_CACHE:
-            return _PHYSICS_CACHE[cache_key]
+        shared = _PHYSICS_CACHE.get(cache_key)
         setting_lock = _SETTING_LOCKS.setdefault(cache_key, threading.Lock())
+    if shared is not None:
+        return session("physics", clip.motion, request, shared=shared)
     with setting_lock:
         with _CACHE_LOCK:
-            if cache_key in _PHYSICS_CACHE:
-                return _PHYSICS_CACHE[cache_key]
-            terms = next((v[0] for (m, _), v in _PHYSICS_CACHE.items() if m == id(clip.motion)), None)
+            shared = _PHYSICS_CACHE.get(cache_key)
+            # else a session under another setting lends its body dynamics; the regions are this setting's
+            other = next((v for (m, _), v in _PHYSICS_CACHE.items() if m == id(clip.motion)), None)
+        if shared is not None:
+            return session("physics", clip.motion, request, shared=shared)
         status("physics: computing the motion's dynamics and feasible regions (once per setting)…")
-        masses = None
-        if part != "none" and factor != 1.0:
-            sk = clip.motion.skeleton
-            root = sk.index(part)
-            masses = {sk.names[j]: factor for j in range(sk.n_joints) if _descends(sk.parents, j, root)}
         try:
-            settings = PhysicsSettings(mass_factors=masses or {}, objective=objective, alpha=alpha)
-            out = prepare(clip.motion, (0.0, -gravity, 0.0), settings, terms=terms, cancel=gone)
+            live = session("physics", clip.motion, request, shared=other, cancel=gone)
+            out = live.shared
         except BaseException:  # failed or cancelled: nothing cached, so no lock kept for it either
             with _CACHE_LOCK:
                 _SETTING_LOCKS.pop(cache_key, None)
@@ -435,7 +432,12 @@ def _physics_prepared(clip, key, status, gone=lambda: False):
                 _SETTING_LOCKS.pop(old, None)
             _PHYSICS_CACHE[cache_key] = out
         status("")
-        return out
+        return live
+
+
+def _hashable(settings):
+    """A settings' cache key (its mass factors are a dict)."""
+    return tuple((k, tuple(sorted(v.items())) if isinstance(v, dict) else v) for k, v in vars(settings).items())
 
 
 def _descends(parents, j, root):

@@ -79,6 +79,24 @@ class PhysicsResult:
     terms: object = None  # the DynamicsTerms (body, torque limits, ...)
 
 
+class LiveSession(RetimingSession):
+    """An interactive retiming (:func:`.method.session`), with what it was computed from
+    (``shared``, a :class:`.method.Shared`) and where its current timing is feasible."""
+
+    def __init__(self, problem, shared, method, fps):
+        super().__init__(problem, method=method, fps=fps)
+        self.shared = shared
+
+    def feasibility(self, fps):
+        """Per output frame at ``fps``: :func:`.feasibility.spline_feasibility` of the current spline."""
+        from .feasibility import spline_feasibility
+
+        return spline_feasibility(self.spline, self.shared.dynamics, self.shared.regions, fps)
+
+    def is_locked(self, index) -> bool:
+        return index in self.spline.locks
+
+
 def _changed(gravity, mass_factors, friction, torque_scale):
     g = np.asarray(gravity, dtype=float)
     return (not np.allclose(g, STANDARD_GRAVITY) or bool(mass_factors) or friction is not None

@@ -6,7 +6,7 @@ batch and the Blender panel read them from here, and :func:`retime.physics.physi
 names as keywords."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from ..errors import RetimeError
 from ..method import Report, Request, Result, settings_record
@@ -107,3 +107,44 @@ def solve(motion, request: Request, terms=None, region_options=None) -> Result:
               "constraint_violation": info.constraint_violation, "seconds": info.seconds,
               "stopped": info.message, "kkt_residual": info.kkt_residual}
     return Result(result.curve, Report(summary, result.report["frames"]), info=solver, detail=result)
+
+
+@dataclass(frozen=True)
+class Shared:
+    """A motion's dynamics, feasible regions and baked objective under one setting: what every live
+    session of that motion and setting shares (computed once, read only by the sessions)."""
+
+    settings: Settings
+    terms: object  # :class:`.dynamics.DynamicsTerms`
+    dynamics: object  # the :class:`.dynamics.PathDynamics` under the setting's gravity and masses
+    regions: object  # :class:`.regions.RegionSet`
+    objective: object  # :class:`.objective.BakedObjective`
+
+
+def _same_physics(a: Settings, b: Settings) -> bool:
+    """Whether two settings give the same dynamics, regions and objective (progress aside)."""
+    return replace(a, progress=False) == replace(b, progress=False)
+
+
+def session(motion, request: Request, shared: Shared | None = None, cancel=None):
+    """A live retiming of ``motion`` (McCann et al. §3.6): the timing spline's control points move,
+    lock, appear and go, and :meth:`reconverge` warm-starts from the current solution (a
+    :class:`.optimize.RetimingSession`). ``shared``: what an earlier session of this motion
+    computed (its ``.shared``): all of it is reused under the same settings, its body dynamics
+    under others. ``cancel``: asked while the regions are computed; True stops with
+    :class:`.regions.Cancelled`."""
+    from .api import LiveSession, conformed_gravity, make_problem, prepare
+
+    s = request.settings_or(Settings)
+    if motion.n_frames < 4:
+        raise RetimeError(f"physics needs at least 4 frames, the motion has {motion.n_frames}")
+    if shared is None or not _same_physics(shared.settings, s):
+        gravity = conformed_gravity(motion, file_gravity(motion, s))
+        check_masses(motion, s.mass_factors)
+        terms, pd, regions, obj = prepare(motion, gravity, s, terms=None if shared is None else shared.terms,
+                                          cancel=cancel)
+        shared = Shared(s, terms, pd, regions, obj)
+    problem = make_problem(shared.objective, motion.duration, request.output_duration(motion), request.keytimes,
+                           s.knot_spacing, s.w_min, s.w_max, start=s.start)
+
+    return LiveSession(problem, shared, method=s.optimizer, fps=motion.fps)
