@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from retime.batch.jobs import Defaults, find_clips, with_absolute_paths
-from retime.batch.run import clip_argv, prepare_worker, run_clip
+from retime.batch.run import clip_task, prepare_worker, run_tasks, task_groups
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 ROUND_TRIPS = 200
@@ -28,17 +28,19 @@ def _nothing():
     return None
 
 
-def throughput(client, clips, method: str, outdir: Path) -> tuple[float, list[str]]:
+def throughput(client, clips, method: str, outdir: Path, workers: int) -> tuple[float, list[str]]:
+    """Clips per second as ``retime batch`` submits them (tasks of :func:`task_groups`)."""
     from distributed import as_completed
 
-    argvs = []
+    tasks = []
     for clip in clips:
         outputs = clip.outputs(outdir, method)
         outputs["bvh"].parent.mkdir(parents=True, exist_ok=True)
-        argvs.append(clip_argv(clip, method, outputs))
+        tasks.append(clip_task(clip, method, outputs))
     start = time.perf_counter()
-    futures = [client.submit(run_clip, argv, pure=False, retries=2) for argv in argvs]
-    results = [f.result() for f in as_completed(futures)]
+    futures = [client.submit(run_tasks, [tasks[i] for i in group], pure=False, retries=2)
+               for group in task_groups(list(range(len(tasks))), method, workers)]
+    results = [r for f in as_completed(futures) for r in f.result()]
     rate = len(clips) / (time.perf_counter() - start)
     return rate, [r["error"] for r in results if r["status"] != "done"]
 
@@ -75,7 +77,7 @@ def main(argv) -> int:
             overhead = round_trip_ms(client)
             for method in ("guided", "physics"):
                 with tempfile.TemporaryDirectory() as tmp:
-                    rate, failed = throughput(client, clips, method, Path(tmp))
+                    rate, failed = throughput(client, clips, method, Path(tmp), workers)
                 errors.update(dict.fromkeys(failed))
                 print(f"{workers:>7}  {method:<8}  {rate:>8.2f}  {len(failed):>6}  {overhead:>8.2f} ms", flush=True)
     for error in errors:

@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 
 from . import apply, armature
-from .options import DEFAULTS, output_frames as _output_frames
+from .options import DEFAULTS, command, output_frames as _output_frames
 from .runner import BackgroundRunOperator, RetimeAddonError, Run, retime_executable
 
 METHODS = [
@@ -50,11 +50,6 @@ def marker_keytimes(scene, start, end, fps):
                                    f"not after the first frame {start}")
         keys.append(((marker.frame - start) / fps, (target - start) / fps))
     return keys
-
-
-def _typed(value):
-    """A float property as the user typed it: Blender keeps them in single precision (0.7 is 0.699999988)."""
-    return f"{value:.7g}"
 
 
 def animated_armature(context, verb):
@@ -170,27 +165,17 @@ class Job(ArmatureJob):
         """Export the action (and the reference) as BVH and start ``retime``."""
         source = os.path.join(self.folder, "source.bvh")
         self.hierarchy = self._export(context, self.action, self.slot, (self.start, self.end), source)
-        argv = [self.executable, self.props.method, source, "-o", os.path.join(self.folder, "retimed.bvh"),
-                "--warp", os.path.join(self.folder, "warp.csv")]
         p = self.props
-        if p.duration > 0:
-            argv += ["--duration", _typed(p.duration)]
-        elif p.scale > 0:
-            argv += ["--scale", _typed(p.scale)]
-        for src, dst in self.keytimes:
-            argv += ["--keytime", f"{src!r}={dst!r}"]
+        reference = None
         if self.reference is not None:
             ref_slot = self._slot_for(self.reference)
             frames = armature.frame_range(self.reference)
             reference = os.path.join(self.folder, "reference.bvh")
             self._export(context, self.reference, ref_slot, frames, reference)
-            argv += ["--reference", reference]
-        if p.method == "guided" and p.blend < 1.0:
-            argv += ["--blend", _typed(p.blend)]
-        if p.method == "physics":
-            if abs(p.gravity_scale - 1.0) > 1e-9:
-                argv += ["--gravity-scale", _typed(p.gravity_scale)]
-            argv += [a for seg in self._mass_factors() for a in ("--mass", seg)]
+        argv = command(self.executable, p.method, source, os.path.join(self.folder, "retimed.bvh"),
+                       os.path.join(self.folder, "warp.csv"), duration=p.duration, scale=p.scale,
+                       keytimes=self.keytimes, reference=reference, blend=p.blend, gravity_scale=p.gravity_scale,
+                       mass=self._mass_factors() if p.method == "physics" else ())
         self.run = Run(argv, self.folder)
 
     def finish(self, context):

@@ -9,7 +9,6 @@ from ..guided.features import FeatureWeights
 from ..guided.method import SCORES, Settings
 from ..method import Request, solve
 from ..motion import load_motion
-from ..warp import apply_timing
 from .common import check_found_inputs, frame_kwargs, add_duration_args, add_motion_args, add_output_args, check_output, load_input, nonnegative_float, positive_float, positive_int, unit_float, write_outputs
 
 
@@ -104,8 +103,8 @@ def run(args):
     answer = solve("guided", motion, Request(args.duration, args.scale, args.keytime, settings))
     result = answer.detail
     curve = result.curve
-    retimed = adaptive_smooth(motion, curve) if args.adaptive_smoothing else apply_timing(motion, curve)
-    write_outputs(args, motion, curve, retimed)
+    retimed = adaptive_smooth(motion, curve) if args.adaptive_smoothing else None  # None: played through the curve
+    write_outputs(args, "guided", motion, answer, retimed)
     if not args.quiet:
         kind = "exact" if result.exact else "heuristic"
         print(f"objective {result.objective:.4g} ({kind}; n={result.n}, m={result.m}, r={result.r}, s={result.s}, "

@@ -6,9 +6,8 @@ import math
 
 from ..physics.constants import MAX_GRAVITY, G
 from ..physics.method import MASS_FACTORS, OBJECTIVES, OPTIMIZER_NAMES, STARTS, Settings
-from ..warp import apply_timing
 from .common import add_duration_args, add_motion_args, add_output_args, check_output, load_input, positive_float, \
-    write_outputs
+    said_written
 
 EPILOG = """examples:
   retime physics 16_06.amc -o half.bvh --scale 0.5 --report half.json
@@ -97,7 +96,8 @@ def register(sub):
 
 def run(args):
     from ..method import Request, solve
-    from ..physics.report import flight_speeds, write_report
+    from ..outputs import write_retiming
+    from ..physics.report import flight_speeds
 
     check_output(args)
     m = load_input(args)
@@ -112,9 +112,8 @@ def run(args):
     answer = solve("physics", m, Request(args.duration, args.scale, args.keytime, settings))
     result = answer.detail
     duration = None if args.duration is None and args.scale is None else answer.curve.duration  # None: free
-    write_outputs(args, m, result.curve, apply_timing(m, result.curve))
-    if args.report:
-        write_report(result.report, args.report, regions=result.regions)  # `retime plot --regions` draws them
+    retimed = write_retiming("physics", m, answer, args.output, args.warp, args.report, source=args.motion)
+    said_written(args, m, retimed)
     if args.write_body:
         from ..physics.body import write_body
 

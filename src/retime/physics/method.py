@@ -148,3 +148,11 @@ def session(motion, request: Request, shared: Shared | None = None, cancel=None)
                            s.knot_spacing, s.w_min, s.w_max, start=s.start)
 
     return LiveSession(problem, shared, method=s.optimizer, fps=motion.fps)
+
+
+def write_report(result: Result, path) -> None:
+    """The report of ``retime physics --report``: summary, per-frame records and each source frame's
+    feasible region (what ``retime plot --regions`` draws)."""
+    from .report import write_report as write_json
+
+    write_json(result.detail.report, path, regions=result.detail.regions)
