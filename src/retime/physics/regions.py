@@ -170,15 +170,15 @@ class RegionSet:
 
 
 def estimate_body_weight(pd) -> float:
-    """Body weight at standard gravity: total mass x 9.81 when known, else |root gravity force|."""
-    m = getattr(pd, "total_mass", None) or getattr(pd, "mass", None)
-    if m:
-        return float(m) * G
+    """Body weight at standard gravity: total mass x 9.81 when known, else |root gravity force| (under
+    ``pd.gravity``, y-up, m/s^2: the dynamics' own, scaled back to standard)."""
+    if pd.total_mass:
+        return float(pd.total_mass) * G
     n_root = unactuated_rows(pd)
-    g = getattr(pd, "gravity", None)
+    g = np.asarray(pd.gravity, dtype=float)
     if n_root >= 3:
         f = float(np.median(np.linalg.norm(np.asarray(pd.c)[:, :3], axis=1)))
-        if g is not None and np.linalg.norm(g) > 0:
+        if np.linalg.norm(g) > 0:
             f *= G / float(np.linalg.norm(g))
         if f > 0:
             return f
@@ -193,8 +193,7 @@ def base_bounds(pd, opts, bw, n_root):
     lo = np.asarray(pd.tau_lo, dtype=float).copy()
     hi = np.asarray(pd.tau_hi, dtype=float).copy()
     if opts.relax and opts.allowance > 0 and n_root:
-        g = getattr(pd, "gravity", None)
-        gscale = 1.0 if g is None else float(np.linalg.norm(g)) / G
+        gscale = float(np.linalg.norm(pd.gravity)) / G  # the dynamics' gravity (y-up), against standard
         w = row_weights(n_root, len(lo), bw, opts)[:n_root]
         lo[:n_root] -= opts.allowance * gscale * w
         hi[:n_root] += opts.allowance * gscale * w
@@ -245,7 +244,7 @@ class RegionJob:
             rlo, rhi = self.reference_bounds
             fit = source_fit(np.asarray(ref.a[i], float), np.asarray(ref.b[i], float), np.asarray(ref.c[i], float),
                              np.asarray(ref.N[i], float), rlo, rhi, opts, bw, n_root, pool)
-        noise = getattr(pd, "b_noise", None)
+        noise = pd.b_noise
         r = frame_region(pd.a[i], pd.b[i], pd.c[i], pd.N[i], lo, hi, opts, bw, n_root,
                          budget=None if fit is None else fit.budget, noise=None if noise is None else noise[i],
                          pool=pool)
@@ -388,7 +387,7 @@ def _region_set(pd, idx, packs: list[dict], opts, bw) -> RegionSet:
 
     offsets = np.zeros(n + 1, dtype=np.int64)
     offsets[1:] = np.cumsum(joined("n_verts"))
-    contact = getattr(pd, "contact", None)
+    contact = pd.contact
     relaxation = joined("relaxation")
     return RegionSet(
         times=np.asarray(pd.times, dtype=float)[idx],
