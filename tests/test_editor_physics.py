@@ -5,15 +5,15 @@ import numpy as np
 import pytest
 
 from retime.data import bundled_path
-from retime.editor.methods import METHODS, Clip
+from retime.editor.methods import ADAPTERS, Clip
 from retime.editor.sessions import Session
 from retime.motion import load_motion
 
 
 @pytest.fixture(scope="module")
 def session(tmp_path_factory):
-    if METHODS["physics"].availability(None) is not None:
-        pytest.skip(METHODS["physics"].availability(None))
+    if ADAPTERS["physics"].availability(None) is not None:
+        pytest.skip(ADAPTERS["physics"].availability(None))
     m = load_motion(bundled_path("16_06.amc"))
     clip = Clip("jump", m.frames(slice(0, 160)))  # 1.3 s: quick dynamics and regions
     s = Session("t", clip, tmp_path_factory.mktemp("out"), m.fps)

@@ -122,8 +122,8 @@ def _random_frame(seed, m=24, K=16, extra=8):
 @pytest.mark.parametrize("seed", range(4))
 def test_parametric_walk_matches_highs_refinement(seed):
     a, b, c, N, lo, hi = _random_frame(seed)
-    r1 = frame_region(a, b, c, N, lo, hi, opts(method="parametric"), 100.0, 6)
-    r2 = frame_region(a, b, c, N, lo, hi, opts(method="highs", tol=1e-7), 100.0, 6)
+    r1 = frame_region(a, b, c, N, lo, hi, opts(solver="parametric"), 100.0, 6)
+    r2 = frame_region(a, b, c, N, lo, hi, opts(solver="highs", tol=1e-7), 100.0, 6)
     assert r1.n_lp <= 4 < r2.n_lp
     d12 = max(polygon_distance(r2.verts, p) for p in r1.verts)
     d21 = max(polygon_distance(r1.verts, p) for p in r2.verts)

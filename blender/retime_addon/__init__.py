@@ -33,7 +33,7 @@ class RetimePreferences(bpy.types.AddonPreferences):
 class RetimeSettings(bpy.types.PropertyGroup):
     """The panel's choices, kept with the scene."""
 
-    method: bpy.props.EnumProperty(name="Method", items=operator.METHODS, default="physics")
+    method: bpy.props.EnumProperty(name="Method", items=operator.METHOD_ITEMS, default="physics")
     timing: bpy.props.EnumProperty(name="Timing", default="SCALE", items=[
         ("SCALE", "Scale", "The output lasts this many times as long"),
         ("DURATION", "Duration", "The output lasts this many seconds"),

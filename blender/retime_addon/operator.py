@@ -14,7 +14,7 @@ from . import apply, armature
 from .options import DEFAULTS, command, output_frames as _output_frames
 from .runner import BackgroundRunOperator, RetimeAddonError, Run, retime_executable
 
-METHODS = [
+METHOD_ITEMS = [
     ("linear", "Linear", "Uniform, or piecewise linear through the keytimes"),
     ("guided", "Guided", "Keep the local velocities of a reference action (Hsu et al. 2007; default: the action itself)"),
     ("physics", "Physics", "Keep the motion physically plausible (McCann et al. 2006)"),
@@ -242,7 +242,7 @@ class RETIME_OT_retime(BackgroundRunOperator, bpy.types.Operator):
     bl_label = "Retime"
     bl_options = {"REGISTER", "UNDO"}
 
-    method: bpy.props.EnumProperty(name="Method", items=METHODS, default="linear")
+    method: bpy.props.EnumProperty(name="Method", items=METHOD_ITEMS, default="linear")
     duration: bpy.props.FloatProperty(name="Duration", description="Output duration in seconds (0: not set)",
                                       min=0.0, default=0.0, unit="TIME_ABSOLUTE")
     scale: bpy.props.FloatProperty(name="Scale", description="Output lasts this many times as long (0.5: twice as "

@@ -457,16 +457,16 @@ def _limb_roots(clip):
             if parents[j] >= 0 and (parents[j] == 0 or n_children[parents[j]] > 1) and n_children[j] > 0]
 
 
-METHODS: dict[str, type[Method]] = {m.name: m for m in (LinearMethod, GuidedMethod, PhysicsMethod)}
+ADAPTERS: dict[str, type[Method]] = {m.name: m for m in (LinearMethod, GuidedMethod, PhysicsMethod)}
 
 
 def register(method_cls: type[Method]) -> None:
-    METHODS[method_cls.name] = method_cls
+    ADAPTERS[method_cls.name] = method_cls
 
 
 def method_catalog(clip: Clip):
     out = []
-    for cls in METHODS.values():
+    for cls in ADAPTERS.values():
         reason = cls.availability(clip)
         out.append({"name": cls.name, "label": cls.label, "description": cls.description,
                     "available": reason is None, "reason": reason, "point_axes": cls.point_axes,
@@ -475,9 +475,9 @@ def method_catalog(clip: Clip):
 
 
 def check_params(method_name, values: dict, clip: Clip) -> dict:
-    cls = METHODS.get(method_name)
+    cls = ADAPTERS.get(method_name)
     if cls is None:
-        raise RetimeError(f"unknown method {method_name!r}; choose one of {', '.join(METHODS)}")
+        raise RetimeError(f"unknown method {method_name!r}; choose one of {', '.join(ADAPTERS)}")
     if not isinstance(values, dict):
         raise RetimeError("parameters must be a JSON object")
     known = {p.name: p for p in cls.param_specs(clip)}
@@ -488,4 +488,4 @@ def check_params(method_name, values: dict, clip: Clip) -> dict:
 
 
 def default_params(method_name, clip: Clip) -> dict:
-    return {p.name: p.default for p in METHODS[method_name].param_specs(clip)}
+    return {p.name: p.default for p in ADAPTERS[method_name].param_specs(clip)}

@@ -9,7 +9,7 @@ Entry point: :func:`retime.guided.guided_warp`.
 
 __all__ = ["guided_warp", "guided_solve", "GuidedResult", "FeatureWeights", "root_frame_poses",
            "adaptive_smooth", "moving_average"]
-_LAZY = {"guided_warp": "api", "guided_solve": "api", "GuidedResult": "api", "root_frame_poses": "api",
+_LAZY = {"guided_warp": "api", "guided_solve": "api", "GuidedResult": "api", "root_frame_poses": "features",
          "FeatureWeights": "features", "adaptive_smooth": "postprocess", "moving_average": "postprocess"}
 
 

@@ -2,7 +2,7 @@
 
 Pipeline (Hsu, da Silva, Popović 2007):
 
-1. Poses: joint positions in the root's frame, in metres (:func:`root_frame_poses`), low-passed
+1. Poses: joint positions in the root's frame, in metres (:func:`retime.guided.features.root_frame_poses`), low-passed
    with a box of ``prefilter`` seconds at the clip's own rate.
 2. Analysis grid: output frames at ``analysis_fps`` (30 Hz, as in the paper). Keytimes cut the
    clip into segments; a segment whose output is longer than its input (an expansion, or any
@@ -26,16 +26,15 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from retime.errors import RetimeError
-from retime.guided.features import FeatureWeights, compact_columns, lowpass, positions_in_root_frame
+from retime.guided.features import FeatureWeights, analysis_samples, pose_pair
 from retime.guided.heuristic import solve_heuristic, solve_upper_bound
 from retime.guided.method import SCORES  # noqa: F401 (the scores' names, where callers found them)
 from retime.guided.postprocess import moving_average
 from retime.guided.problem import SolveStats, WarpProblem, solve_exact
 from retime.guided.steady import steady_warp
-from retime.motion import Motion, forward_kinematics
+from retime.motion import Motion
 from retime.warp import TimingCurve, check_keytimes, keytime_warp, output_duration
 
 #: above this many DP states the exact solver first runs the heuristic for an upper bound and
@@ -64,105 +63,12 @@ class GuidedResult:
     stats: SolveStats = field(default_factory=SolveStats)
 
 
-#: frames per forward-kinematics pass of :func:`root_frame_poses` (each frame is computed on its
-#: own, so the numbers are the same; a whole long clip at once held ~10 temporaries of its size)
-POSE_CHUNK_FRAMES = 4096
-#: pose columns per low-pass and spline in :func:`_analysis_samples` (columns are filtered and
-#: interpolated independently; one spline of every column held ~9 copies of the clip's poses)
-SPLINE_CHUNK_COLUMNS = 8
-
-
-def root_frame_poses(motion: Motion, root_height: float = 0.0, chunk_frames: int = POSE_CHUNK_FRAMES) -> np.ndarray:
-    """(F, J, 3) joint positions in the floating base's coordinate frame
-    (:func:`retime.motion.rig.floating_base`; dummy roots above it and props beside the body under
-    them are zero rows), in metres.
-
-    With ``root_height`` > 0 one more row (F, J+1, 3) holds the base's height above the ground
-    along the file's up axis (detected or given, :mod:`retime.motion.frame`; m) times that weight
-    in its y slot (x and z zero). Computed ``chunk_frames`` frames at a time.
-    """
-    from retime.motion.rig import base_and_props
-
-    base, props = base_and_props(motion.skeleton)
-    rows = motion.skeleton.n_joints + (1 if root_height > 0 else 0)
-    out = np.empty((motion.n_frames, rows, 3))
-    for f0 in range(0, motion.n_frames, int(chunk_frames)):
-        f1 = min(motion.n_frames, f0 + int(chunk_frames))
-        _root_frame_chunk(motion, f0, f1, base, props, root_height, out[f0:f1])
-    return out
-
-
-def _root_frame_chunk(motion, f0, f1, base, props, root_height, out):
-    """Frames f0..f1-1 of :func:`root_frame_poses`, written into ``out``."""
-    from retime.motion.frame import up_vector
-
-    sk = motion.skeleton
-    pos, ori = forward_kinematics(motion, motion.rotations[f0:f1], motion.translations[f0:f1])
-    J = sk.n_joints
-    out[:, :J] = positions_in_root_frame(pos, pos[:, base], ori[:, base]) * float(sk.meters_per_unit)
-    out[:, :base] = 0.0
-    out[:, props] = 0.0  # IK targets and markers beside the body are not its pose
-    if root_height > 0:
-        out[:, J] = 0.0
-        out[:, J, 1] = (pos[:, base] @ up_vector(sk.up)) * float(sk.meters_per_unit) * root_height
-
-
 def _check_reference(motion: Motion, reference: Motion):
     diff = motion.skeleton.same_structure(reference.skeleton)
     if diff:
         shown = ", ".join(diff[:8]) + (f" and {len(diff) - 8} more" if len(diff) > 8 else "")
         raise RetimeError(f"the reference's skeleton differs from the input's in joints {shown} "
                           "(missing on one side or with another parent); guided warping needs the same skeleton")
-
-
-def _pose_pair(motion, reference, root_height=0.0):
-    """Flattened poses of input and reference with the columns constant in both dropped."""
-    a = root_frame_poses(motion, root_height)
-    b = a if reference is motion else root_frame_poses(reference, root_height)
-    if reference is not motion:
-        order = [reference.skeleton.index(nm) for nm in motion.skeleton.names]
-        if root_height > 0:
-            order.append(len(order))
-        b = b[:, order]
-    x = a.reshape(a.shape[0], -1)
-    z = x if reference is motion else b.reshape(b.shape[0], -1)
-    return compact_columns(x, z)
-
-
-def _sampler(poses, fps):
-    """A function of times (s) giving the poses (F, D) at ``fps`` there (cubic spline)."""
-    F = poses.shape[0]
-    if F < 4:
-        def linear(times):
-            u = np.clip(np.asarray(times) * fps, 0, F - 1)
-            return np.stack([np.interp(u, np.arange(F), poses[:, c]) for c in range(poses.shape[1])], axis=1)
-        return linear
-    spline = CubicSpline(np.arange(F) / fps, poses, axis=0)
-    return lambda times: spline(np.clip(times, 0.0, (F - 1) / fps))
-
-
-def _analysis_samples(poses, fps, prefilter, times, chunk_columns=SPLINE_CHUNK_COLUMNS):
-    """Poses (F, D) at ``fps``, low-passed with a box of ``prefilter`` seconds, at each array of
-    ``times`` (s): a list of (len(t), D) arrays. A few columns at a time, each low-passed and
-    splined once."""
-    width = max(1, int(round(prefilter * fps)))
-    out = [np.empty((len(t), poses.shape[1])) for t in times]
-    for c0 in range(0, poses.shape[1], int(chunk_columns)):
-        c1 = min(poses.shape[1], c0 + int(chunk_columns))
-        sample = _sampler(lowpass(poses[:, c0:c1], width), fps)
-        for t, o in zip(times, out):
-            o[:, c0:c1] = sample(t)
-    return out
-
-
-def analysis_poses(motion: Motion, fps: float = 30.0, prefilter: float = 0.1, times=None,
-                   root_height: float = 1.0) -> np.ndarray:
-    """(frames, D) low-passed root-frame joint positions (m) at ``fps`` (or at ``times`` seconds)."""
-    x = root_frame_poses(motion, root_height)
-    x = x.reshape(x.shape[0], -1)
-    if times is None:
-        times = np.arange(int(math.floor(motion.duration * fps + 1e-9)) + 1) / fps
-    return _analysis_samples(x, motion.fps, prefilter, [np.asarray(times, dtype=float)])[0]
 
 
 def _segments(S, T, keytimes, A):
@@ -287,7 +193,7 @@ def guided_result(motion: Motion, settings, request) -> GuidedResult:
             raise err
 
     # --- poses on the grid and at the analysis rate
-    x_src, z_src = _pose_pair(motion, reference, weights.root_height)
+    x_src, z_src = pose_pair(motion, reference, weights.root_height)
     grid, fixed = [], {}
     for q in range(len(src) - 1):
         N = max(1, int(round((src[q + 1] - src[q]) * A * ups[q])))
@@ -299,10 +205,10 @@ def guided_result(motion: Motion, settings, request) -> GuidedResult:
     n = grid_times.size
     r_times = np.arange(int(math.floor(reference.duration * A + 1e-9)) + 1) / A
     if self_ref:  # one low-pass and spline gives both
-        x, z = _analysis_samples(x_src, motion.fps, prefilter, [grid_times, r_times])
+        x, z = analysis_samples(x_src, motion.fps, prefilter, [grid_times, r_times])
     else:
-        x, = _analysis_samples(x_src, motion.fps, prefilter, [grid_times])
-        z, = _analysis_samples(z_src, reference.fps, prefilter, [r_times])
+        x, = analysis_samples(x_src, motion.fps, prefilter, [grid_times])
+        z, = analysis_samples(z_src, reference.fps, prefilter, [r_times])
     del x_src, z_src  # the clip-rate poses: the biggest arrays so far
     if z.shape[0] < 3:
         raise RetimeError(f"the reference is {reference.duration:.3g} s long: at {A:g} Hz that is "

@@ -83,8 +83,8 @@ class LiveSession(RetimingSession):
     """An interactive retiming (:func:`.method.session`), with what it was computed from
     (``shared``, a :class:`.method.Shared`) and where its current timing is feasible."""
 
-    def __init__(self, problem, shared, method, fps):
-        super().__init__(problem, method=method, fps=fps)
+    def __init__(self, problem, shared, optimizer, fps):
+        super().__init__(problem, optimizer=optimizer, fps=fps)
         self.shared = shared
 
     def feasibility(self, fps):
@@ -258,7 +258,7 @@ def physics_result(motion, settings, request, terms=None, region_options=None) -
         source = check_source(motion, terms, regions)  # said before the retiming, by the caller
         problem = make_problem(obj, S, duration, keytimes, s.knot_spacing, s.w_min, s.w_max, start=s.start,
                                timings=timings)
-        session = RetimingSession(problem, method=s.optimizer, fps=fps)
+        session = RetimingSession(problem, optimizer=s.optimizer, fps=fps)
         t0 = time.perf_counter()
         info = session.reconverge(max_iter=s.max_iter, tol=1e-9)
         timings["optimize"] = time.perf_counter() - t0

@@ -147,7 +147,7 @@ def session(motion, request: Request, shared: Shared | None = None, cancel=None)
     problem = make_problem(shared.objective, motion.duration, request.output_duration(motion), request.keytimes,
                            s.knot_spacing, s.w_min, s.w_max, start=s.start)
 
-    return LiveSession(problem, shared, method=s.optimizer, fps=motion.fps)
+    return LiveSession(problem, shared, optimizer=s.optimizer, fps=motion.fps)
 
 
 def write_report(result: Result, path) -> None:

@@ -40,7 +40,7 @@ from ..errors import RetimeError
 from .objective import BakedObjective, ObjectiveWorkspace, evaluate
 from .spline import TimingSpline
 
-METHODS = ("lbfgs", "lbfgsb", "gd", "slsqp")
+OPTIMIZERS = ("lbfgs", "lbfgsb", "gd", "slsqp")
 
 
 @dataclass
@@ -268,8 +268,8 @@ def solve(problem: Problem, w0=None, method="lbfgs", max_iter=500, tol=1e-9, eq_
 
 
 def _solve(problem, w0, method, max_iter, tol, eq_tol, max_seconds):
-    if method not in METHODS:
-        raise RetimeError(f"unknown optimizer {method!r} (use {', '.join(METHODS)})")
+    if method not in OPTIMIZERS:
+        raise RetimeError(f"unknown optimizer {method!r} (use {', '.join(OPTIMIZERS)})")
     t0 = time.perf_counter()
     problem.n_evals = 0
     bounds = problem.bounds()
@@ -363,9 +363,9 @@ class RetimingSession:
     Control points are the spline's (output time, source time) pairs (:meth:`control_points`);
     index 0 and the last one are the ends (source 0 and S) and cannot move vertically."""
 
-    def __init__(self, problem: Problem, method="lbfgs", fps=None):
+    def __init__(self, problem: Problem, optimizer="lbfgs", fps=None):
         self.problem = problem
-        self.method = method
+        self.optimizer = optimizer  # one of OPTIMIZERS
         self.fps = fps
         self.history: list[SolveInfo] = []
 
@@ -470,7 +470,7 @@ class RetimingSession:
         iterations) suits interaction: the curve then stays within a fraction of a source frame of
         the fully converged one (``benchmarks/physics.py`` measures how far, on 16_16 at half
         duration)."""
-        w, info = solve(self.problem, self.spline.w, method=self.method, max_iter=max_iter, tol=tol,
+        w, info = solve(self.problem, self.spline.w, method=self.optimizer, max_iter=max_iter, tol=tol,
                         max_seconds=max_seconds)
         self.spline.w = w
         self.history.append(info)

@@ -16,14 +16,14 @@ computed per frame (:mod:`.frame_region`):
   :mod:`.highs_lp`), one ``Highs`` model per frame that keeps its basis; only the cost direction changes. Two ways of
   tracing the polygon:
 
-  - ``method="parametric"`` (default): HiGHS solves the frame's centre LP (least contact force at the
+  - ``solver="parametric"`` (default): HiGHS solves the frame's centre LP (least contact force at the
     original timing, sec. 3.4) -- the one HiGHS solve per frame; with its basis, a compiled phase-2
     primal simplex (:mod:`.simplex`) reaches the vertex of largest p'^2, and a parametric (shadow-vertex) simplex rotates
     the cost direction through 360 degrees from there, pivoting exactly at the angles where the basis
     stops being optimal. Every non-degenerate pivot lands on the next vertex of the projection, so the
     polygon is exact (to floating point). On numerical trouble (the walk stops short) it falls
     back to the refinement below.
-  - ``method="highs"``: adaptive refinement with HiGHS alone (Fig. 4): maximize in the four axis
+  - ``solver="highs"``: adaptive refinement with HiGHS alone (Fig. 4): maximize in the four axis
     directions, then along the outward normal of every edge found so far; an edge is final when the
     LP cannot push past it by more than ``tol``, so the polygon is exact to ``tol`` (it always lies
     inside the true region).
@@ -84,30 +84,10 @@ import numpy as np
 
 from ..errors import RetimeError
 from .constants import G
-from .frame_region import FrameRegion, frame_region, row_weights, source_fit, unactuated_rows
+from .frame_region import FrameRegion, RegionOptions, frame_region, row_weights, source_fit, unactuated_rows
 from .highs_lp import HighsPool
 from .polygon import polygon_distance, polygon_distances
 
-
-
-@dataclass
-class RegionOptions:
-    """How feasible regions are computed. Units: u = p'' in 1/s, v = p'^2 (dimensionless)."""
-
-    u_max: float = 60.0
-    v_max: float = 64.0  # up to 8x speed (still frames, which any speed suits)
-    method: str = "parametric"  # "parametric" (HiGHS + shadow-vertex walk) or "highs" (refinement)
-    tol: float = 1e-3  # "highs": polygon accuracy in the (p'', p'^2) plane
-    relax: bool = True  # False: exact regions (an empty one is an error)
-    allowance: float = 0.05  # residual root wrench every frame may use, fraction of body weight
-    relax_pad: float = 0.01  # fraction of body weight added around every residual budget
-    noise: bool = True  # widen the root rows by the capture-noise band b_noise p'^2 (PathDynamics.b_noise)
-    max_relaxation: float = 0.05  # frames needing more extra relaxation are flagged implausible
-    moment_arm: float = 1.0  # metres: a root moment of W * moment_arm counts like a force of W
-    actuated_slack_cost: float = 10.0
-    body_weight: float | None = None  # newtons; default: estimated from the gravity term
-    center: tuple = (0.0, 1.0)  # the timing whose contact forces anchor the force model (sec. 3.4)
-    workers: int | None = None  # processes for many frames (default: all cores, at most 2)
 
 
 @dataclass
@@ -316,8 +296,8 @@ def compute_regions(pd, options: RegionOptions | None = None, reference=None, fr
     import time
 
     opts = options or RegionOptions()
-    if opts.method not in ("parametric", "highs"):
-        raise RetimeError(f"unknown region method {opts.method!r} (use 'parametric' or 'highs')")
+    if opts.solver not in ("parametric", "highs"):
+        raise RetimeError(f"unknown region solver {opts.solver!r} (use 'parametric' or 'highs')")
     t0 = time.perf_counter()
     idx = np.arange(len(pd.times)) if frames is None else np.asarray(frames)
     n = len(idx)

@@ -17,10 +17,10 @@ from typing import Any
 import numpy as np
 
 from retime.errors import RetimeError
+from retime.method import METHODS  # the method registry
 from retime.phases import interval_speed, longest_flight
 
 DEFAULT_CLIP = "16_06.amc"
-METHODS = ("linear", "guided", "physics")
 
 
 @dataclass
@@ -137,7 +137,7 @@ def run_demo(
     out_dir: str | os.PathLike = "retime-demo",
     clip: str = DEFAULT_CLIP,
     scale: float = 0.5,
-    methods=METHODS,
+    methods=tuple(METHODS),  # every registered method
     fps: float = 30.0,
     panel_size: tuple[int, int] = (480, 400),
     video: bool = True,
@@ -247,7 +247,8 @@ def run_demo(
         render_fps = None
         if video:
             bar.set_postfix_str("video")
-            from retime.viz.render import Renderer, VideoWriter, track_from_motion
+            from retime.viz.render import Renderer, track_from_motion
+            from retime.viz.video import VideoWriter
 
             # feet in contact (from the physics report) highlighted in every panel
             src_contacts = None
