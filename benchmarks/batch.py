@@ -4,6 +4,7 @@ the per-task overhead (an empty task's round trip through the scheduler).
 
     python3 benchmarks/batch.py            # the shared data set (skipped when absent)
     python3 benchmarks/batch.py DIR ...    # any folders or files
+    python3 benchmarks/batch.py --methods guided --one-per-task   # one method; a clip per task (no grouping)
 
 Each throughput is the wall time from the first submission to the last result, on a warmed
 cluster (started, the physics imported on every worker), so cluster start-up is not counted.
@@ -18,7 +19,8 @@ import time
 from pathlib import Path
 
 from retime.batch.jobs import Defaults, find_clips, with_absolute_paths
-from retime.batch.run import clip_task, prepare_worker, run_tasks, task_groups
+import retime.batch.run as batch_run
+from retime.batch.run import clip_task, input_sizes, prepare_worker, run_tasks
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 ROUND_TRIPS = 200
@@ -29,7 +31,7 @@ def _nothing():
 
 
 def throughput(client, clips, method: str, outdir: Path, workers: int) -> tuple[float, list[str]]:
-    """Clips per second as ``retime batch`` submits them (tasks of :func:`task_groups`)."""
+    """Clips per second as ``retime batch`` submits them (tasks of :func:`retime.batch.run.task_groups`)."""
     from distributed import as_completed
 
     tasks = []
@@ -37,9 +39,10 @@ def throughput(client, clips, method: str, outdir: Path, workers: int) -> tuple[
         outputs = clip.outputs(outdir, method)
         outputs["bvh"].parent.mkdir(parents=True, exist_ok=True)
         tasks.append(clip_task(clip, method, outputs))
+    todo = list(range(len(tasks)))
     start = time.perf_counter()
     futures = [client.submit(run_tasks, [tasks[i] for i in group], pure=False, retries=2)
-               for group in task_groups(list(range(len(tasks))), method, workers)]
+               for group in batch_run.task_groups(todo, method, workers, input_sizes(clips, todo))]
     results = [r for f in as_completed(futures) for r in f.result()]
     rate = len(clips) / (time.perf_counter() - start)
     return rate, [r["error"] for r in results if r["status"] != "done"]
@@ -57,7 +60,17 @@ def round_trip_ms(client) -> float:
 
 
 def main(argv) -> int:
-    inputs = argv or ([str(DATA)] if DATA.is_dir() else [])
+    import argparse
+
+    ap = argparse.ArgumentParser(description="retime batch throughput")
+    ap.add_argument("inputs", nargs="*")
+    ap.add_argument("--methods", default="guided,physics")
+    ap.add_argument("--one-per-task", action="store_true",
+                    help="a clip per task in the clips' order, as before tasks were grouped and ordered")
+    args = ap.parse_args(argv)
+    if args.one_per_task:
+        batch_run.task_groups = lambda todo, method, workers, sizes: [[i] for i in todo]
+    inputs = args.inputs or ([str(DATA)] if DATA.is_dir() else [])
     if not inputs:
         print(f"skipped: no data at {DATA} (give folders or files)")
         return 0
@@ -75,7 +88,7 @@ def main(argv) -> int:
                           silence_logs=40) as cluster, Client(cluster) as client:
             client.run(prepare_worker)
             overhead = round_trip_ms(client)
-            for method in ("guided", "physics"):
+            for method in args.methods.split(","):
                 with tempfile.TemporaryDirectory() as tmp:
                     rate, failed = throughput(client, clips, method, Path(tmp), workers)
                 errors.update(dict.fromkeys(failed))

@@ -25,10 +25,11 @@ from .lock import FolderLock
 from .summary import clip_row, read_warp, write_index_html, write_summary_csv
 
 MANIFEST_SAVE_INTERVAL = 1.0  # seconds: often enough for Ctrl-C to keep what finished, rarely enough for 10^4 clips
-#: methods whose clips take milliseconds, next to the scheduler's ~10 ms round trip: grouped into tasks
+#: methods whose clips take well under a second: several small clips travel in one task, so that the
+#: scheduler's round trip (~10 ms) is paid once for them
 QUICK_METHODS = ("linear", "guided")
 MAX_GROUP = 8  # clips per task at most
-TASKS_PER_WORKER = 4  # at least this many tasks per worker, so that the last ones still spread
+TASKS_PER_WORKER = 4  # a task holds at most 1/(this x workers) of the batch's bytes, so the last ones still spread
 
 
 @dataclass(frozen=True)
@@ -60,13 +61,37 @@ def clip_task(clip: Clip, method: str, outputs: dict[str, Path], gravity_scale: 
     return Task(method, clip.motion, outputs, request, clip.reference)
 
 
-def task_groups(todo: list[int], method: str, workers: int) -> list[list[int]]:
-    """``todo`` cut into the tasks the scheduler gets: one clip each for the slow methods, else up to
-    MAX_GROUP consecutive clips, as many as leave every worker TASKS_PER_WORKER tasks or more."""
-    size = 1
-    if method in QUICK_METHODS:
-        size = max(1, min(MAX_GROUP, len(todo) // (TASKS_PER_WORKER * max(1, workers))))
-    return [todo[k:k + size] for k in range(0, len(todo), size)]
+def task_groups(todo: list[int], method: str, workers: int, sizes: dict[int, int]) -> list[list[int]]:
+    """``todo`` as the tasks the scheduler gets, longest first (``sizes``: each clip's input in bytes,
+    which grows with its frames): the longest-processing-time order, so that no long clip starts
+    last while the other workers idle. For the quick methods consecutive clips share a task while
+    together they hold at most 1/(TASKS_PER_WORKER x workers) of the bytes (and MAX_GROUP clips)."""
+    order = sorted(todo, key=lambda i: (-sizes.get(i, 0), i))
+    if method not in QUICK_METHODS:
+        return [[i] for i in order]
+    budget = sum(sizes.get(i, 0) for i in order) / (TASKS_PER_WORKER * max(1, workers))
+    groups: list[list[int]] = []
+    held = 0
+    for i in order:
+        size = sizes.get(i, 0)
+        if groups and len(groups[-1]) < MAX_GROUP and held + size <= budget:
+            groups[-1].append(i)
+            held += size
+        else:
+            groups.append([i])
+            held = size
+    return groups
+
+
+def input_sizes(clips: list[Clip], todo: list[int]) -> dict[int, int]:
+    """Each clip's input file size in bytes (0 when it cannot be read: it fails quickly)."""
+    out = {}
+    for i in todo:
+        try:
+            out[i] = clips[i].motion.stat().st_size
+        except OSError:
+            out[i] = 0
+    return out
 
 
 # ---------------------------------------------------------------------------------------- on a worker
@@ -369,7 +394,7 @@ def _compute(client, clips, outputs, digests, todo, results, manifest, method, g
         client.run(prepare_worker)
         index_of = {}
         workers = max(1, len(client.scheduler_info().get("workers", {})))
-        for group in task_groups(todo, method, workers):
+        for group in task_groups(todo, method, workers, input_sizes(clips, todo)):
             tasks = [clip_task(clips[i], method, outputs[i], gravity_scale) for i in group]
             future = client.submit(run_tasks, tasks, pure=False, retries=2)
             index_of[future.key] = group
