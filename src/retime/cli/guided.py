@@ -101,12 +101,11 @@ def run(args):
     settings = Settings(reference=reference, free=bool(getattr(args, "free", False)), fast=args.fast,
                         progress=not args.quiet, **given)
     answer = solve("guided", motion, Request(args.duration, args.scale, args.keytime, settings))
-    result = answer.detail
-    curve = result.curve
-    retimed = adaptive_smooth(motion, curve) if args.adaptive_smoothing else None  # None: played through the curve
+    retimed = adaptive_smooth(motion, answer.curve) if args.adaptive_smoothing else None  # None: through the curve
     write_outputs(args, "guided", motion, answer, retimed)
     if not args.quiet:
-        kind = "exact" if result.exact else "heuristic"
-        print(f"objective {result.objective:.4g} ({kind}; n={result.n}, m={result.m}, r={result.r}, s={result.s}, "
-              f"k={result.k}); scores {result.stats.objective_s:.3f} s, search {result.stats.optimization_s:.3f} s")
+        i, t = answer.info, answer.report.summary["timings"]
+        kind = "exact" if i["exact"] else "heuristic"
+        print(f"objective {i['objective']:.4g} ({kind}; n={i['n']}, m={i['m']}, r={i['r']}, s={i['s']}, "
+              f"k={i['k']}); scores {t['scores']:.3f} s, search {t['search']:.3f} s")
     return 0

@@ -35,7 +35,7 @@ from retime.guided.postprocess import moving_average
 from retime.guided.problem import SolveStats, WarpProblem, solve_exact
 from retime.guided.steady import steady_warp
 from retime.motion import Motion
-from retime.warp import TimingCurve, check_keytimes, keytime_warp, output_duration
+from retime.warp import TimingCurve, check_keytimes, keytime_warp
 
 #: above this many DP states the exact solver first runs the heuristic for an upper bound and
 #: prunes the band with Lagrangian bounds (exact either way)
