@@ -30,8 +30,9 @@ def _nothing():
     return None
 
 
-def throughput(client, clips, method: str, outdir: Path, workers: int) -> tuple[float, list[str]]:
-    """Clips per second as ``retime batch`` submits them (tasks of :func:`retime.batch.run.task_groups`)."""
+def throughput(client, clips, method: str, outdir: Path, workers: int) -> tuple[float, list[str], dict]:
+    """Clips per second as ``retime batch`` submits them (tasks of :func:`retime.batch.run.task_groups`),
+    the failures, and each clip's own seconds (by index)."""
     from distributed import as_completed
 
     tasks = []
@@ -41,11 +42,25 @@ def throughput(client, clips, method: str, outdir: Path, workers: int) -> tuple[
         tasks.append(clip_task(clip, method, outputs))
     todo = list(range(len(tasks)))
     start = time.perf_counter()
-    futures = [client.submit(run_tasks, [tasks[i] for i in group], pure=False, retries=2)
-               for group in batch_run.task_groups(todo, method, workers, input_sizes(clips, todo))]
-    results = [r for f in as_completed(futures) for r in f.result()]
+    groups = batch_run.task_groups(todo, method, workers, input_sizes(clips, todo))
+    futures = {client.submit(run_tasks, [tasks[i] for i in group], pure=False, retries=2): group for group in groups}
+    seconds, errors = {}, []
+    for future in as_completed(futures):
+        for i, r in zip(futures[future], future.result()):
+            seconds[i] = r["seconds"]
+            if r["status"] != "done":
+                errors.append(r["error"])
     rate = len(clips) / (time.perf_counter() - start)
-    return rate, [r["error"] for r in results if r["status"] != "done"]
+    return rate, errors, seconds
+
+
+def makespan(seconds: dict, order: list[int], workers: int) -> float:
+    """The wall time of clips of these ``seconds`` handed out in ``order`` to the first free worker."""
+    free = [0.0] * workers
+    for i in order:
+        k = free.index(min(free))
+        free[k] += seconds[i]
+    return max(free)
 
 
 def round_trip_ms(client) -> float:
@@ -82,7 +97,7 @@ def main(argv) -> int:
     clips = [with_absolute_paths(c) for c in find_clips(inputs, Defaults(scale=0.7))]
     print(f"{len(clips)} clips from {', '.join(inputs)}; --scale 0.7")
     print(f"{'workers':>7}  {'method':<8}  {'clips/s':>8}  {'failed':>6}  {'empty task':>10}")
-    errors = {}
+    errors, alone = {}, {}
     for workers in (1, 2):
         with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
                           silence_logs=40) as cluster, Client(cluster) as client:
@@ -90,11 +105,21 @@ def main(argv) -> int:
             overhead = round_trip_ms(client)
             for method in args.methods.split(","):
                 with tempfile.TemporaryDirectory() as tmp:
-                    rate, failed = throughput(client, clips, method, Path(tmp), workers)
+                    rate, failed, seconds = throughput(client, clips, method, Path(tmp), workers)
                 errors.update(dict.fromkeys(failed))
+                if workers == 1:
+                    alone[method] = seconds
                 print(f"{workers:>7}  {method:<8}  {rate:>8.2f}  {len(failed):>6}  {overhead:>8.2f} ms", flush=True)
     for error in errors:
         print(f"failed: {error}")
+    # what the order alone allows on 2 workers, from each clip's seconds on 1 (no overhead, no contention)
+    sizes = input_sizes(clips, list(range(len(clips))))
+    for method, seconds in alone.items():
+        total = sum(seconds.values())
+        fifo = makespan(seconds, sorted(seconds), 2)
+        longest = makespan(seconds, sorted(seconds, key=lambda i: (-sizes[i], i)), 2)
+        print(f"{method}: the clips' own {total:.1f} s on 2 workers in the clips' order could reach "
+              f"{total / fifo:.2f}x, longest first {total / longest:.2f}x")
     return 0
 
 
