@@ -94,8 +94,8 @@ def run(args):
         check_found_inputs(args, reference)
     from ..guided import adaptive_smooth
 
-    given = {k: getattr(args, k) for k in ("max_skip", "neighbors", "analysis_fps", "weights", "upsample",
-                                              "smoothing", "score", "steadiness", "blend") if getattr(args, k) is not None}
+    options = ("max_skip", "neighbors", "analysis_fps", "weights", "upsample", "smoothing", "score", "steadiness", "blend")
+    given = {k: getattr(args, k) for k in options if getattr(args, k) is not None}
     if args.approx is not None:
         given.update(knn="approx", eps=args.approx)
     settings = Settings(reference=reference, free=bool(getattr(args, "free", False)), fast=args.fast,

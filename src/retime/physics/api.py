@@ -158,7 +158,8 @@ def prepare_regions(motion, gravity=STANDARD_GRAVITY, mass_factors=None, body=No
 def make_problem(obj, source_duration, duration=None, keytimes=(), knot_spacing=None, w_min=None, w_max=None,
                  start=None, timings=None):
     """The spline problem: knots every ``knot_spacing`` (output time, uniform), the duration (None:
-    free) and keytimes; None for ``knot_spacing``, ``w_min``, ``w_max``, ``start``: :class:`.method.Settings`'. ``start="global"`` (no keytimes) starts from the grid optimum
+    free) and keytimes; None for ``knot_spacing``, ``w_min``, ``w_max``, ``start``: :class:`.method.Settings`'.
+    ``start="global"`` (no keytimes) starts from the grid optimum
     (:mod:`.globalstart`) and softens the frames it gives up in the problem's objective, for this and
     every later re-convergence of a session built on it; ``"uniform"`` is the paper's start; keytimes
     start from their piecewise-linear timing."""
