@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from retime.guided import dp
-from retime.guided.api import analysis_poses
+from retime.guided.features import analysis_poses
 from retime.guided.features import FeatureWeights, compact_columns
 from retime.guided.heuristic import solve_heuristic, solve_upper_bound
 from retime.guided.method import Settings

@@ -55,7 +55,7 @@ CMU_EXTRA = ["13_11.amc", "02_04.bvh", "16_01.amc", "13_39.amc", "16_35.amc", "1
 PHYSICS_DEV = ["jumping.bvh", "run.bvh", "wd2_short_broad_jump.bvh", "cart.bvh", "ZombieIdel.bvh",
                "AV_8Walk_Meredith_HVHA_Rep1.bvh"]
 SCALE = 0.6
-METHODS = ("linear", "guided", "check", "physics")
+BENCHMARKED = ("linear", "guided", "check", "physics")
 RENAMES = ("mixamo", "unreal", "rigify", "biped", "kinect", "cmu")
 VARIANTS = ("float32",) + RENAMES + ("z-up", "cm", "mm")
 UNIT_M = {"cm": 0.01, "mm": 0.001}
@@ -302,7 +302,7 @@ def print_tables(paths, methods):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--methods", default=",".join(METHODS))
+    ap.add_argument("--methods", default=",".join(BENCHMARKED))
     ap.add_argument("--variants", default=",".join(VARIANTS))
     ap.add_argument("--clips", default="", help="comma-separated file names (default: all)")
     ap.add_argument("--jobs", type=int, default=2, help="processes (at most 2: the machine is shared)")

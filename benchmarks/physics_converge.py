@@ -134,7 +134,7 @@ def main(argv=None):
     ap.add_argument("--no-today", action="store_true", help="skip the comparison with the pipeline before issue 24")
     args = ap.parse_args(argv)
     clips = args.clips or sorted(str(p) for p in BUNDLED.glob("*") if p.suffix in (".amc", ".bvh"))
-    kw = {} if args.method is None else {"method": args.method}
+    kw = {} if args.method is None else {"optimizer": args.method}
     print(f"{'clip':14s} {'moved':>6s} {'iterations':>11s} {'stop':>4s} {'KKT residual':>17s} {'kinks':>5s} "
           f"{'objective orig / f32':>25s} {'same timing':>11s}  why it stopped")
     for c in clips:

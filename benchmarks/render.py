@@ -21,7 +21,8 @@ def main():
 
     from retime.data import bundled_path
     from retime.motion import load_motion
-    from retime.viz.render import Renderer, VideoWriter, track_from_motion
+    from retime.viz.render import Renderer, track_from_motion
+    from retime.viz.video import VideoWriter
 
     motion = load_motion(bundled_path("16_06.amc"))
     track = track_from_motion(motion, "original")

@@ -33,7 +33,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 SRC = ROOT / "src"
-METHODS = ("linear", "guided", "guided-fast", "physics")
+BENCHMARKED = ("linear", "guided", "guided-fast", "physics")
 # issue 16's targets on this 2-core machine, printed beside the measurements
 TARGETS = {("physics", 10): "2 GB, 180 s", ("guided", 10): "0.4 GB, 9 s"}
 COLD_TARGETS = {"physics": 15.0, "guided": 5.0, "demo": 20.0}
@@ -197,7 +197,7 @@ def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--minutes", default="1,2,5,10", help="sizes for linear and guided (default 1,2,5,10)")
     p.add_argument("--physics-minutes", default=None, help="sizes for physics (default: --minutes)")
-    p.add_argument("--methods", default=",".join(METHODS), help=f"subset of {','.join(METHODS)}")
+    p.add_argument("--methods", default=",".join(BENCHMARKED), help=f"subset of {','.join(BENCHMARKED)}")
     p.add_argument("--timeout", type=float, default=1800.0, help="seconds per measurement")
     p.add_argument("--no-cold", action="store_true", help="skip the cold-start figures")
     p.add_argument("--cold-only", action="store_true", help="only the cold-start figures")

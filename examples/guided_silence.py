@@ -13,7 +13,7 @@ import numpy as np
 from guided_common import load, parse_args, speed_where, write_result
 
 from retime.guided import guided_solve
-from retime.guided.api import analysis_poses
+from retime.guided.features import analysis_poses
 from retime.warp import scale_warp
 
 CLIPS = ["131_01.bvh", "16_33.amc", "131_03.bvh", "13_29.amc"]

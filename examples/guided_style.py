@@ -15,7 +15,7 @@ import numpy as np
 from guided_common import load, parse_args, speed_where, write_result
 
 from retime.guided import guided_solve
-from retime.guided.api import root_frame_poses
+from retime.guided.features import root_frame_poses
 from retime.motion import save_bvh
 
 WINDOW = 10.0

@@ -15,6 +15,17 @@ SCRIPTS = Path(__file__).resolve().parent / "blender_scripts"
 SRC = REPO / "src"
 SHARED_BVH = REPO.parent / "shared" / "data" / "bvh-dev"
 TOLERANCE = 1e-4  # of the body's height: the issue's bound for "the same poses"
+ADDON = REPO / "blender" / "retime_addon"
+
+
+def addon_module(name: str):
+    """One of the add-on's modules that need no bpy (runner.py, options.py), imported outside Blender."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(f"retime_addon_{name}", ADDON / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 @functools.lru_cache(maxsize=1)

@@ -8,12 +8,12 @@ agreed ``PathDynamics`` layout: tau = a p'' + b p'^2 + c - N lam.
 """
 from __future__ import annotations
 
-from types import SimpleNamespace
 
 import numpy as np
 from scipy.optimize import nnls
 
 from retime.physics.contact_basis import ContactBasis
+from retime.physics.dynamics import PathDynamics
 
 G = 9.81
 
@@ -129,17 +129,15 @@ def rigid_jump(gravity=(0.0, -G, 0.0), mass=70.0, fps=120.0, mu=0.5, vy0=2.0, vx
             N[i, 7] = 0.4 * J[0]
     tau_lo = np.zeros(nv)
     tau_hi = np.zeros(nv)
-    pd = SimpleNamespace(times=s, a=a, b=b, c=c, N=ContactBasis.from_dense(N), contact=contact[:, None],
-                         tau_lo=tau_lo, tau_hi=tau_hi)
+    pd = PathDynamics(times=s, a=a, b=b, c=c, N=ContactBasis.from_dense(N), contact=contact[:, None],
+                      tau_lo=tau_lo, tau_hi=tau_hi, total_mass=mass, gravity=g, fps=fps)
     if limits is None:
         tau0 = original_torques_nnls(pd)
         peak = np.max(np.abs(tau0[:, 6:]), axis=0)
         limits = 1.3 * peak + 1.0
     pd.tau_lo = np.r_[np.zeros(6), -limits]
     pd.tau_hi = np.r_[np.zeros(6), limits]
-    pd.flight = flight
-    pd.mass = mass
-    pd.gravity = g
+    pd.flight = flight  # for the tests: which samples fly
     return pd
 
 
@@ -173,10 +171,11 @@ def free_fall(g_source=G, g_new=G, mass=60.0, fps=120.0, n=40, vel=(1.0, 2.0, 0.
         rng = np.random.default_rng(seed)
         b[:, 3:] = noise * mass * rng.normal(size=(n, 3))
         b[:, :3] += 0.2 * noise * mass * rng.normal(size=(n, 3))
-    return SimpleNamespace(times=s, a=a, b=b, c=c, N=ContactBasis.from_dense(np.zeros((n, nv, 16))),
-                           contact=np.zeros((n, 1), bool),
-                           tau_lo=np.zeros(nv), tau_hi=np.zeros(nv), mass=mass, gravity=np.array([0.0, -g_new, 0.0]),
-                           vel=v0)
+    pd = PathDynamics(times=s, a=a, b=b, c=c, N=ContactBasis.from_dense(np.zeros((n, nv, 16))),
+                      contact=np.zeros((n, 1), bool), tau_lo=np.zeros(nv), tau_hi=np.zeros(nv), total_mass=mass,
+                      gravity=np.array([0.0, -g_new, 0.0]), fps=fps)
+    pd.vel = v0  # for the tests: the initial velocity
+    return pd
 
 
 def quarter_gravity_problem():
@@ -187,7 +186,7 @@ def quarter_gravity_problem():
 
     ref = rigid_jump()
     pd = rigid_jump(gravity=(0.0, -G / 4, 0.0), limits=ref.tau_hi[6:])
-    rs = R.compute_regions(pd, R.RegionOptions(workers=1, body_weight=ref.mass * G), reference=ref)
+    rs = R.compute_regions(pd, R.RegionOptions(workers=1, body_weight=ref.total_mass * G), reference=ref)
     target = ref.b + ref.c - np.einsum("nvk,nk->nv", ref.N, rs.lam0)
     obj = O.bake(pd, rs, target, alpha=10.0, beta=0.1, penalty="l1", gamma=0.03)
     return pd, rs, obj

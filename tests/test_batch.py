@@ -334,3 +334,23 @@ def test_check_batch_ranks_the_library_from_least_to_most_physical(tmp_path):
     assert "least to most physical" in page and "Timing:" not in page and "<svg" not in page
     assert re.findall(r'<a href="([^"]+)"><img src="\1"', page) == ["fast.png", "jump.png"]
     assert exit_code(["batch", str(folder), "-o", str(out), "--method", "check", "--scale", "0.5"]) == 2
+
+
+def test_tasks_run_longest_first_and_group_only_quick_clips():
+    """The scheduler gets the longest clips first (so none starts last on an idle cluster); linear and
+    guided clips share tasks up to a byte budget (the batch's bytes over 4 tasks per worker) and
+    MAX_GROUP clips; physics and check clips each get their own task."""
+    from retime.batch.run import MAX_GROUP, TASKS_PER_WORKER, task_groups
+
+    sizes = {i: s for i, s in enumerate([50, 4000, 120, 900, 30, 30, 2500, 60, 70, 10, 10, 10, 10, 10, 10, 10, 10])}
+    todo = list(sizes)
+    for workers in (1, 2, 3):
+        groups = task_groups(todo, "guided", workers, sizes)
+        flat = [i for g in groups for i in g]
+        assert sorted(flat) == todo  # every clip once
+        assert [sizes[i] for i in flat] == sorted(sizes.values(), reverse=True)  # longest first
+        budget = sum(sizes.values()) / (TASKS_PER_WORKER * workers)
+        assert all(len(g) == 1 or (sum(sizes[i] for i in g) <= budget and len(g) <= MAX_GROUP) for g in groups)
+        assert len(groups) < len(todo)  # the small ones do share
+    assert task_groups(todo, "physics", 2, sizes) == [[i] for i in sorted(todo, key=lambda i: (-sizes[i], i))]
+    assert task_groups(todo, "check", 2, sizes) == task_groups(todo, "physics", 2, sizes)

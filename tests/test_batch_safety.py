@@ -244,20 +244,22 @@ def test_the_lock_is_released_on_an_error(tmp_path):
 # ------------------------------------------------------------------------------ W1: per-task errors
 def test_clips_on_one_multithreaded_worker_report_their_own_errors(tmp_path, short_bvh):
     """A `dask worker` runs a task per thread; each failed clip must carry its own file's error."""
-    from retime.batch.run import run_clip
+    from retime.batch.run import Task, run_task
+    from retime.guided.method import Settings
+    from retime.method import Request
 
     text = short_bvh.read_text()
-    argvs = {}
+    tasks = {}
     for i in range(12):
         good = tmp_path / f"good{i}.bvh"
         good.write_text(text)
         bad = tmp_path / f"bad{i}.bvh"
         bad.write_text(text[: len(text) // 2 + 37 * i])  # truncated mid-frame, at a different place each
         for p in (good, bad):
-            argvs[p] = ["guided", str(p), "-o", str(tmp_path / f"o_{p.stem}.bvh"), "--scale", "0.7", "--fast",
-                        "--quiet"]
+            outputs = {"bvh": tmp_path / f"o_{p.stem}.bvh", "warp": tmp_path / f"o_{p.stem}.csv"}
+            tasks[p] = Task("guided", p, outputs, Request(scale=0.7, settings=Settings(fast=True)))
     with ThreadPoolExecutor(4) as pool:
-        results = dict(zip(argvs, pool.map(run_clip, argvs.values())))
+        results = dict(zip(tasks, pool.map(run_task, tasks.values())))
     for path, result in results.items():
         if path.stem.startswith("good"):
             assert result["status"] == "done", (path, result)

@@ -128,7 +128,7 @@ def test_mutated_inputs_fail_cleanly(kind, seeds, tmp_path):
 
 
 # ------------------------------------------------------------------ batch: jobs files and layouts (issue 22)
-# Clips run in this process (run_clip, as a worker runs them) instead of on a Dask cluster, so that a few
+# Clips run in this process (run_task, as a worker runs them) instead of on a Dask cluster, so that a few
 # hundred layouts fit the budget; the cluster, its signals and its failures are tests/test_batch*.py's.
 BATCH_BUDGET_S = 20.0
 NAMES = ["a.bvh", "b.bvh", "summary.bvh", ".retime-batch.bvh", "index.bvh", "jobs.bvh", "x.bvh"]
@@ -140,7 +140,7 @@ def inline_batch(monkeypatch):
 
     def compute(client, clips, outputs, digests, todo, results, manifest, method, gravity_scale, *_):
         for i in todo:
-            results[i] = batch_run.run_clip(batch_run.clip_argv(clips[i], method, outputs[i], gravity_scale))
+            results[i] = batch_run.run_task(batch_run.clip_task(clips[i], method, outputs[i], gravity_scale))
             if results[i]["status"] == "done":
                 manifest.record(clips[i], digests[i], 0.0)
             else:

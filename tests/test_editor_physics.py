@@ -5,15 +5,15 @@ import numpy as np
 import pytest
 
 from retime.data import bundled_path
-from retime.editor.methods import METHODS, Clip
+from retime.editor.methods import ADAPTERS, Clip
 from retime.editor.sessions import Session
 from retime.motion import load_motion
 
 
 @pytest.fixture(scope="module")
 def session(tmp_path_factory):
-    if METHODS["physics"].availability(None) is not None:
-        pytest.skip(METHODS["physics"].availability(None))
+    if ADAPTERS["physics"].availability(None) is not None:
+        pytest.skip(ADAPTERS["physics"].availability(None))
     m = load_motion(bundled_path("16_06.amc"))
     clip = Clip("jump", m.frames(slice(0, 160)))  # 1.3 s: quick dynamics and regions
     s = Session("t", clip, tmp_path_factory.mktemp("out"), m.fps)
@@ -41,8 +41,8 @@ def test_strip_agrees_with_the_curve_tested_as_any_curve(session):
     feas = np.asarray(sol.feasibility)
     assert feas.shape == (sol.curve.n_frames(session.fps),)
     assert sol.info["feasible_fraction"] == pytest.approx(np.mean(feas == 1.0), abs=1e-4)
-    _, pd, regions, _ = session.adapter("physics").prepared
-    other = curve_feasibility(sol.curve, pd, regions, session.fps)
+    shared = session.adapter("physics").rs.shared
+    other = curve_feasibility(sol.curve, shared.dynamics, shared.regions, session.fps)
     assert np.mean(other.inside == (feas == 1.0)) >= 0.95
     # outside the region the shade falls with the residual
     out = ~other.inside & (feas < 1.0)

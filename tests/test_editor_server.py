@@ -74,8 +74,8 @@ def served(clip, tmp_path_factory):
         with BackgroundServer(create_app(clip, outdir)) as url:
             yield url, outdir, root
     finally:
-        methods_mod.METHODS.pop(SlowMethod.name, None)
-        methods_mod.METHODS.pop(BrokenMethod.name, None)
+        methods_mod.ADAPTERS.pop(SlowMethod.name, None)
+        methods_mod.ADAPTERS.pop(BrokenMethod.name, None)
 
 
 @pytest.fixture()
@@ -453,8 +453,8 @@ def test_twenty_sessions_edit_at_once(served):
 
 
 def test_guided_edits_are_keytimes_and_the_warp_passes_through_them(client, clip):
-    if methods_mod.METHODS["guided"].availability(clip) is not None:
-        pytest.skip(methods_mod.METHODS["guided"].availability(clip))
+    if methods_mod.ADAPTERS["guided"].availability(clip) is not None:
+        pytest.skip(methods_mod.ADAPTERS["guided"].availability(clip))
     sid = new_session(client)["session"]
     edit(client, sid, {"op": "add", "t": 1.5, "s": 1.0}, {"op": "duration", "duration": 2.5})
     sol = edit(client, sid, {"op": "method", "method": "guided"})

@@ -122,7 +122,7 @@ def test_upper_bound_and_pruned_exact_search_agree(jump):
     from retime.guided import dp
     from retime.guided.heuristic import solve_heuristic, solve_upper_bound
     from retime.guided.problem import WarpProblem
-    from retime.guided.api import analysis_poses
+    from retime.guided.features import analysis_poses
 
     x = analysis_poses(jump)
     problem = WarpProblem(np.vstack([x, x[::-1], x]), np.vstack([x, x[::-1], x]), 30.0, 180, {}, 8, 3)
@@ -201,7 +201,7 @@ def test_upper_bound_falls_back_when_its_corridor_cannot_hold_the_warp(jump, mon
 
 # --- bounded memory: the clip-rate poses are made in chunks; the chunks must not change a bit
 def test_root_frame_poses_in_chunks_are_the_same(jump):
-    from retime.guided.api import root_frame_poses
+    from retime.guided.features import root_frame_poses
 
     whole = root_frame_poses(jump, 1.0, chunk_frames=jump.n_frames)
     for chunk in (1, 7, 64):
@@ -211,7 +211,7 @@ def test_root_frame_poses_in_chunks_are_the_same(jump):
 def test_analysis_samples_in_column_chunks_are_the_same(jump):
     from scipy.interpolate import CubicSpline
 
-    from retime.guided.api import _analysis_samples, root_frame_poses
+    from retime.guided.features import analysis_samples, root_frame_poses
     from retime.guided.features import lowpass
 
     poses = root_frame_poses(jump, 1.0).reshape(jump.n_frames, -1)
@@ -221,7 +221,7 @@ def test_analysis_samples_in_column_chunks_are_the_same(jump):
     spline = CubicSpline(np.arange(jump.n_frames) / jump.fps, lowpass(poses, 12), axis=0)
     whole = [spline(np.clip(t, 0.0, (jump.n_frames - 1) / jump.fps)) for t in (grid, rate)]
     for chunk in (1, 3, 8, poses.shape[1]):
-        got = _analysis_samples(poses, jump.fps, 0.1, [grid, rate], chunk_columns=chunk)  # 12 frames at 120 Hz
+        got = analysis_samples(poses, jump.fps, 0.1, [grid, rate], chunk_columns=chunk)  # 12 frames at 120 Hz
         assert [g.tobytes() for g in got] == [w.tobytes() for w in whole]
 
 

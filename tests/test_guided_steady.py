@@ -167,16 +167,16 @@ def test_cli_blend_and_score(tmp_path, capsys):
 
 def test_batch_blend_column(tmp_path):
     from retime.batch.jobs import Defaults, find_clips
-    from retime.batch.run import clip_argv
+    from retime.batch.run import clip_task
+    from retime.guided.method import Settings
     from retime.errors import RetimeError
 
     jobs = tmp_path / "jobs.csv"
     jobs.write_text(f"motion,scale,blend\n{bundled_path('16_06.amc')},0.6,0.25\n{bundled_path('16_03.amc')},0.6,\n")
     a, b = find_clips([str(jobs)], Defaults())
     assert a.blend == 0.25 and b.blend is None
-    argv = clip_argv(a, "guided", a.outputs(tmp_path, "guided"))
-    assert argv[argv.index("--blend") + 1] == "0.25"
-    assert "--blend" not in clip_argv(b, "guided", b.outputs(tmp_path, "guided"))
+    assert clip_task(a, "guided", a.outputs(tmp_path, "guided")).request.settings.blend == 0.25
+    assert clip_task(b, "guided", b.outputs(tmp_path, "guided")).request.settings == Settings()
     jobs.write_text(f"motion,scale,blend\n{bundled_path('16_06.amc')},0.6,1.5\n")
     with pytest.raises(RetimeError, match=r"jobs.csv line 2: blend must be a number from 0 to 1"):
         find_clips([str(jobs)], Defaults())

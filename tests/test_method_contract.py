@@ -122,3 +122,31 @@ def test_speed_is_the_derivative_of_every_methods_curve(jump, name, request_):
     numeric = (curve(ahead) - curve(behind)) / (ahead - behind)
     np.testing.assert_allclose(curve.speed(t), numeric, rtol=1e-2, atol=1e-2)  # the difference sees s'' h / 2
     assert curve.speed(t).min() > 0.1  # none of these requests holds a frame
+
+
+def test_a_live_session_is_the_solve_and_takes_edits(short_jump):
+    """retime.method.session: converged from the same start, the live session's curve is solve's; a
+    locked edit holds through re-convergence; a second session of the same setting reuses the first's
+    dynamics and regions."""
+    from retime.method import session
+
+    request = Request(duration=1.2)
+    live = session("physics", short_jump, request)
+    live.reconverge(max_iter=3000, tol=1e-9)
+    solved = solve("physics", short_jump, request)
+    t = np.linspace(0.0, 1.2, 61)
+    np.testing.assert_allclose(live.curve(short_jump.fps)(t), solved.curve(t), atol=1e-9)
+    k = len(live.control_points()) // 2
+    s_k = live.control_points()[k]["source_time"] + 0.05
+    live.move(k, s_k, lock=True)
+    live.reconverge(max_iter=300)
+    point = live.control_points()[k]
+    assert point["locked"] and live.is_locked(k) and point["source_time"] == pytest.approx(s_k, abs=1e-9)
+    assert 0.0 <= live.feasibility(short_jump.fps).fraction <= 1.0
+    again = session("physics", short_jump, request, shared=live.shared)
+    assert again.shared is live.shared
+    other = session("physics", short_jump, Request(duration=1.2, settings=settings_type("physics")(gravity_scale=0.5)),
+                    shared=live.shared)
+    assert other.shared.terms is live.shared.terms and other.shared.regions is not live.shared.regions
+    with pytest.raises(RetimeError, match="linear has no live session"):
+        session("linear", short_jump, request)

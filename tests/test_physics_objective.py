@@ -26,7 +26,7 @@ def setup():
     pd = ps.rigid_jump(gravity=(0.0, -G / 2, 0.0), limits=ref.tau_hi[6:], noise=0.02)
     # the (u, v) box of the regions' original default (5x speed): the checks below are about the
     # objective's algebra, and the numbers they were tuned on
-    rs = R.compute_regions(pd, R.RegionOptions(workers=1, body_weight=ref.mass * G, v_max=25.0), reference=ref)
+    rs = R.compute_regions(pd, R.RegionOptions(workers=1, body_weight=ref.total_mass * G, v_max=25.0), reference=ref)
     target = ref.b + ref.c - np.einsum("nvk,nk->nv", ref.N, rs.lam0)
     return pd, rs, target
 
@@ -157,10 +157,10 @@ def test_samples_are_four_per_source_frame():
 
 def test_residual_scales_are_body_weights_per_unit_timing():
     pd = ps.free_fall(noise=0.0)
-    sc = O.residual_scales(pd, pd.mass * G)
+    sc = O.residual_scales(pd, pd.total_mass * G)
     # root force m x'' per unit p'^2 is m g: one body weight; per unit p'' it is m |x'| / W
     assert np.allclose(sc[:, 1], 1.0)
-    assert np.allclose(sc[:, 0], np.linalg.norm(pd.a[:, :3], axis=1) / (pd.mass * G))
+    assert np.allclose(sc[:, 0], np.linalg.norm(pd.a[:, :3], axis=1) / (pd.total_mass * G))
 
 
 def test_unbaked_evaluation_equals_baked(setup):

@@ -42,7 +42,7 @@ def test_free_fall_with_relaxation_on_keeps_the_timing():
     ref = ps.free_fall(g_source=G, g_new=G)
     g2 = G / 4
     pd = ps.free_fall(g_source=G, g_new=g2)
-    o = opts(body_weight=ref.mass * G)
+    o = opts(body_weight=ref.total_mass * G)
     eps = o.allowance
     rs = R.compute_regions(pd, o, reference=ref)
     assert np.all(rs.source_residual == 0)
@@ -52,7 +52,7 @@ def test_free_fall_with_relaxation_on_keeps_the_timing():
         P = rs.polygon(i)
         assert rs.contains(i, (0.0, g2 / G))
         assert polygon_area(P) == pytest.approx(4 * eps ** 2 * g2 ** 2 / (G * vx), rel=1e-6)
-        vy = pd.a[i, 1] / pd.mass
+        vy = pd.a[i, 1] / pd.total_mass
         assert np.all(np.abs(vx * P[:, 0]) <= eps * g2 + 1e-9)
         assert np.all(np.abs(vy * P[:, 0] - G * P[:, 1] + g2) <= eps * g2 + 1e-9)
 
@@ -62,7 +62,7 @@ def test_noisy_free_fall_budget_scales_with_speed():
     a quarter of the gravity the region still holds (0, 1/4) and stays narrow."""
     ref = ps.free_fall(g_source=G, g_new=G, noise=1.0)
     pd = ps.free_fall(g_source=G, g_new=G / 4, noise=1.0)
-    rs = R.compute_regions(pd, opts(body_weight=ref.mass * G), reference=ref)
+    rs = R.compute_regions(pd, opts(body_weight=ref.total_mass * G), reference=ref)
     assert np.mean(rs.source_residual > 0) > 0.8
     for i in range(rs.n_frames):
         assert rs.contains(i, (0.0, 0.25), tol=1e-9), i
@@ -122,8 +122,8 @@ def _random_frame(seed, m=24, K=16, extra=8):
 @pytest.mark.parametrize("seed", range(4))
 def test_parametric_walk_matches_highs_refinement(seed):
     a, b, c, N, lo, hi = _random_frame(seed)
-    r1 = frame_region(a, b, c, N, lo, hi, opts(method="parametric"), 100.0, 6)
-    r2 = frame_region(a, b, c, N, lo, hi, opts(method="highs", tol=1e-7), 100.0, 6)
+    r1 = frame_region(a, b, c, N, lo, hi, opts(solver="parametric"), 100.0, 6)
+    r2 = frame_region(a, b, c, N, lo, hi, opts(solver="highs", tol=1e-7), 100.0, 6)
     assert r1.n_lp <= 4 < r2.n_lp
     d12 = max(polygon_distance(r2.verts, p) for p in r1.verts)
     d21 = max(polygon_distance(r1.verts, p) for p in r2.verts)
@@ -171,8 +171,8 @@ def test_impossible_frame_is_relaxed_not_empty():
     i = 10
     N = -pd.N[i]
     lo, hi = pd.tau_lo.copy(), pd.tau_hi.copy()
-    o = opts(body_weight=pd.mass * G, allowance=0.0)
-    r = frame_region(pd.a[i], pd.b[i], pd.c[i], N, lo, hi, o, pd.mass * G, 6, budget=np.zeros(len(lo)))
+    o = opts(body_weight=pd.total_mass * G, allowance=0.0)
+    r = frame_region(pd.a[i], pd.b[i], pd.c[i], N, lo, hi, o, pd.total_mass * G, 6, budget=np.zeros(len(lo)))
     assert r.relaxed and r.relaxation > 0.5 and len(r.verts) >= 1
     assert r.relaxation > o.max_relaxation  # flagged as implausible by compute_regions
 

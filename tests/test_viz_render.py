@@ -10,12 +10,12 @@ from retime.viz.render import (
     CONTACT_COLOR,
     Renderer,
     Track,
-    VideoWriter,
     _sample,
     frame_count,
     render_video,
     track_from_motion,
 )
+from retime.viz.video import VideoWriter
 from synthetic_figure import synthetic_figure
 
 

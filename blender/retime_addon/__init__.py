@@ -10,6 +10,7 @@ Its panel sits in the sidebar (N) of the Dope Sheet and of the NLA editor, tab "
 import bpy
 
 from . import armature, check_view, operator
+from .options import DEFAULTS
 from .runner import RetimeAddonError, retime_executable
 
 
@@ -32,7 +33,7 @@ class RetimePreferences(bpy.types.AddonPreferences):
 class RetimeSettings(bpy.types.PropertyGroup):
     """The panel's choices, kept with the scene."""
 
-    method: bpy.props.EnumProperty(name="Method", items=operator.METHODS, default="physics")
+    method: bpy.props.EnumProperty(name="Method", items=operator.METHOD_ITEMS, default="physics")
     timing: bpy.props.EnumProperty(name="Timing", default="SCALE", items=[
         ("SCALE", "Scale", "The output lasts this many times as long"),
         ("DURATION", "Duration", "The output lasts this many seconds"),
@@ -43,9 +44,9 @@ class RetimeSettings(bpy.types.PropertyGroup):
     apply: bpy.props.EnumProperty(name="Apply", items=operator.APPLY_MODES, default="BAKE")
     use_markers: bpy.props.BoolProperty(name="Keytimes from Markers", default=True, description=operator.MARKER_HELP)
     reference: bpy.props.StringProperty(name="Reference", description="The action whose timing to imitate (empty: the action itself)")
-    blend: bpy.props.FloatProperty(name="Reference Influence", default=1.0, min=0.0, max=1.0, subtype="FACTOR",
+    blend: bpy.props.FloatProperty(name="Reference Influence", default=DEFAULTS["blend"], min=0.0, max=1.0, subtype="FACTOR",
                                    description="0: the smooth spline through the keytimes; 1: the guided warp")
-    gravity_scale: bpy.props.FloatProperty(name="Gravity", default=1.0, min=0.01, max=100.0)
+    gravity_scale: bpy.props.FloatProperty(name="Gravity", default=DEFAULTS["gravity_scale"], min=0.01, max=100.0)
     mass: bpy.props.StringProperty(name="Mass Factors", description="BONE=FACTOR, comma separated (e.g. lfemur=10)")
 
 

@@ -11,9 +11,10 @@ import bpy
 import numpy as np
 
 from . import apply, armature
+from .options import DEFAULTS, command, output_frames as _output_frames
 from .runner import BackgroundRunOperator, RetimeAddonError, Run, retime_executable
 
-METHODS = [
+METHOD_ITEMS = [
     ("linear", "Linear", "Uniform, or piecewise linear through the keytimes"),
     ("guided", "Guided", "Keep the local velocities of a reference action (Hsu et al. 2007; default: the action itself)"),
     ("physics", "Physics", "Keep the motion physically plausible (McCann et al. 2006)"),
@@ -49,20 +50,6 @@ def marker_keytimes(scene, start, end, fps):
                                    f"not after the first frame {start}")
         keys.append(((marker.frame - start) / fps, (target - start) / fps))
     return keys
-
-
-def _typed(value):
-    """A float property as the user typed it: Blender keeps them in single precision (0.7 is 0.699999988)."""
-    return f"{value:.7g}"
-
-
-def _output_frames(method, duration, scale, n_source, fps):
-    """The output's frame count when the duration is set (None when the method chooses it)."""
-    if scale > 0:
-        return int(np.floor((n_source - 1) * scale + 1e-6)) + 1
-    if duration > 0:
-        return max(1, int(round(duration * fps))) + 1
-    return n_source if method == "guided" else None
 
 
 def animated_armature(context, verb):
@@ -177,27 +164,17 @@ class Job(ArmatureJob):
         """Export the action (and the reference) as BVH and start ``retime``."""
         source = os.path.join(self.folder, "source.bvh")
         self.hierarchy = self._export(context, self.action, self.slot, (self.start, self.end), source)
-        argv = [self.executable, self.props.method, source, "-o", os.path.join(self.folder, "retimed.bvh"),
-                "--warp", os.path.join(self.folder, "warp.csv")]
         p = self.props
-        if p.duration > 0:
-            argv += ["--duration", _typed(p.duration)]
-        elif p.scale > 0:
-            argv += ["--scale", _typed(p.scale)]
-        for src, dst in self.keytimes:
-            argv += ["--keytime", f"{src!r}={dst!r}"]
+        reference = None
         if self.reference is not None:
             ref_slot = self._slot_for(self.reference)
             frames = armature.frame_range(self.reference)
             reference = os.path.join(self.folder, "reference.bvh")
             self._export(context, self.reference, ref_slot, frames, reference)
-            argv += ["--reference", reference]
-        if p.method == "guided" and p.blend < 1.0:
-            argv += ["--blend", _typed(p.blend)]
-        if p.method == "physics":
-            if abs(p.gravity_scale - 1.0) > 1e-9:
-                argv += ["--gravity-scale", _typed(p.gravity_scale)]
-            argv += [a for seg in self._mass_factors() for a in ("--mass", seg)]
+        argv = command(self.executable, p.method, source, os.path.join(self.folder, "retimed.bvh"),
+                       os.path.join(self.folder, "warp.csv"), duration=p.duration, scale=p.scale,
+                       keytimes=self.keytimes, reference=reference, blend=p.blend, gravity_scale=p.gravity_scale,
+                       mass=self._mass_factors() if p.method == "physics" else ())
         self.run = Run(argv, self.folder)
 
     def finish(self, context):
@@ -264,7 +241,7 @@ class RETIME_OT_retime(BackgroundRunOperator, bpy.types.Operator):
     bl_label = "Retime"
     bl_options = {"REGISTER", "UNDO"}
 
-    method: bpy.props.EnumProperty(name="Method", items=METHODS, default="linear")
+    method: bpy.props.EnumProperty(name="Method", items=METHOD_ITEMS, default="linear")
     duration: bpy.props.FloatProperty(name="Duration", description="Output duration in seconds (0: not set)",
                                       min=0.0, default=0.0, unit="TIME_ABSOLUTE")
     scale: bpy.props.FloatProperty(name="Scale", description="Output lasts this many times as long (0.5: twice as "
@@ -274,10 +251,10 @@ class RETIME_OT_retime(BackgroundRunOperator, bpy.types.Operator):
     reference: bpy.props.StringProperty(name="Reference", description="Guided: the action whose timing to imitate "
                                         "(empty: the action itself)")
     blend: bpy.props.FloatProperty(name="Reference Influence", description="Guided: 0 plays the smooth spline "
-                                   "through the keytimes, 1 the guided warp (Hsu et al. sec. 5)", default=1.0,
+                                   "through the keytimes, 1 the guided warp (Hsu et al. sec. 5)", default=DEFAULTS["blend"],
                                    min=0.0, max=1.0, subtype="FACTOR")
-    gravity_scale: bpy.props.FloatProperty(name="Gravity", description="Physics: gravity times this", default=1.0,
-                                           min=0.01, max=100.0)
+    gravity_scale: bpy.props.FloatProperty(name="Gravity", description="Physics: gravity times this",
+                                           default=DEFAULTS["gravity_scale"], min=0.01, max=100.0)
     mass: bpy.props.StringProperty(name="Mass Factors", description="Physics: BONE=FACTOR, comma separated "
                                    "(e.g. lfemur=10)")
 

@@ -13,7 +13,8 @@ A method is one module (``retime.linear.method``, ``retime.guided.method``,
 
 * ``NAME``: what the command line and the editor call it;
 * ``Settings``: a dataclass of the method's own options, every field with a default;
-* ``solve(motion, request) -> Result``.
+* ``solve(motion, request) -> Result``;
+* optionally ``session(motion, request, ...)``: a live session for an editor (:func:`session`).
 
 Adding a method is writing such a module and naming it in :data:`METHODS`.
 The command line, the demo, the editor and the batch runner call methods only through here.
@@ -26,7 +27,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 from .errors import RetimeError
-from .warp import TimingCurve, scale_warp, snap_duration
+from .warp import TimingCurve, output_duration
 
 #: method name -> module implementing the contract (imported on first use: a method's compiled
 #: kernels load only when it is asked for)
@@ -59,12 +60,9 @@ class Request:
         object.__setattr__(self, "keytimes", tuple((float(s), float(t)) for s, t in self.keytimes))
 
     def output_duration(self, motion) -> float | None:
-        """The requested duration on the output frame grid (None: not requested)."""
-        if self.duration is not None:
-            return snap_duration(float(self.duration), motion.fps)
-        if self.scale is not None:
-            return scale_warp(motion.duration, float(self.scale), motion.fps).duration
-        return None
+        """The requested duration on the output frame grid (None: not requested, a free duration);
+        :func:`retime.warp.output_duration` is the rule."""
+        return output_duration(motion.duration, motion.fps, self.duration, self.scale)
 
     def settings_or(self, settings_type):
         """The request's settings, checked to be the method's own type (its defaults when None)."""
@@ -136,6 +134,28 @@ def solve(name: str, motion, request: Request | None = None) -> Result:
     """Retime ``motion`` with method ``name`` (see the module docstring)."""
     request = Request() if request is None else request
     return module(name).solve(motion, request)
+
+
+def session(name: str, motion, request: Request | None = None, **options):
+    """A live session of method ``name`` on ``motion`` for an editor: edits of the curve's control
+    points and re-convergence from the current solution, for the methods that keep state between
+    edits (``retime.physics.method.session``; ``options``: what that method's session takes, e.g. the
+    ``shared`` computations of an earlier session)."""
+    request = Request() if request is None else request
+    mod = module(name)
+    if not hasattr(mod, "session"):
+        raise RetimeError(f"{name} has no live session: each edit is solved again with solve()")
+    return mod.session(motion, request, **options)
+
+
+def settings_from(settings_type, options: dict):
+    """A method's ``Settings`` from keyword options (what the keyword wrappers such as
+    :func:`retime.physics.physics_warp` take), unknown names refused in one line."""
+    known = {f.name for f in fields(settings_type)}
+    unknown = sorted(set(options) - known)
+    if unknown:
+        raise RetimeError(f"unknown option {unknown[0]!r}; {settings_type.__module__} takes {', '.join(sorted(known))}")
+    return settings_type(**options)
 
 
 def settings_record(settings, leave_out=()) -> dict:

@@ -228,11 +228,34 @@ def uniform_warp(source_duration: float, duration: float) -> TimingCurve:
 
 
 def scale_warp(source_duration: float, scale: float, fps: float) -> TimingCurve:
-    """Play the source at exactly 1/scale of its speed (scale 0.5 = twice as fast).
+    """Play the source at exactly 1/scale of its speed (scale 0.5 = twice as fast), for as long as
+    :func:`output_duration` gives: output frame k shows source time k / (fps * scale) exactly (with
+    scale 0.5, the source's even frames). When the source is not a whole number of output frames
+    long, the final fraction of an output frame (under 1/fps) is not played."""
+    duration = output_duration(source_duration, fps, scale=scale)
+    return TimingCurve([0.0, duration], [0.0, min(duration / scale, source_duration)])
 
-    The output has floor(S * scale * fps) + 1 frames, so output frame k shows source time k / (fps *
-    scale) exactly (with scale 0.5, the source's even frames). When the source is not a whole number of
-    output frames long, the final fraction of an output frame (under 1/fps) is not played."""
+
+def output_duration(source_duration: float, fps: float, duration: float | None = None,
+                    scale: float | None = None) -> float | None:
+    """The output's length on its frame grid, the one rule every door (the Python wrappers,
+    :func:`retime.method.solve`, the command line, the editor, batch, the Blender add-on) follows;
+    an output of m frames lasts (m - 1) / fps.
+
+    * ``duration`` (s): the nearest whole number of output frames (:func:`snap_duration`);
+    * ``scale``: floor(S * scale * fps) output frames after the first (to 1e-6 of a frame), so that
+      output frame k shows source time k / (fps * scale) exactly and none plays past the source's end;
+    * neither: None, a free duration, which the method chooses and then puts on the grid with
+      :func:`snap_duration`."""
+    if duration is not None and scale is not None:
+        raise RetimeError("give a duration or a scale, not both")
+    if duration is not None:
+        if not (duration > 0):
+            raise RetimeError(f"duration must be positive, got {duration}")
+        return snap_duration(float(duration), fps)
+    if scale is None:
+        return None
+    scale = float(scale)
     if not (scale > 0) or not np.isfinite(scale):
         raise RetimeError(f"--scale must be a positive number, got {scale}")
     exact = source_duration * scale * fps
@@ -242,8 +265,7 @@ def scale_warp(source_duration: float, scale: float, fps: float) -> TimingCurve:
     frames = int(np.floor(exact + 1e-6))
     if frames < 1:
         raise RetimeError(f"--scale {scale:g} leaves less than two frames of output")
-    duration = frames / fps
-    return TimingCurve([0.0, duration], [0.0, min(duration / scale, source_duration)])
+    return frames / fps
 
 
 def keytime_warp(source_duration: float, keytimes=(), duration=None, smooth=False) -> TimingCurve:

@@ -1,10 +1,11 @@
-"""The Dask driver: one task per clip, each running the single-clip command in-process on a worker
-(so a batch's outputs are byte for byte the command's), gathered as they complete. A worker that
-dies costs only its task, which the scheduler runs again elsewhere (retries)."""
+"""The Dask driver: clips as tasks, each running the single-clip work in-process on a worker through
+:func:`retime.method.solve` and :mod:`retime.outputs` (the code the single-clip commands run, so a
+batch's outputs are byte for byte the command's), gathered as they complete. Quick clips (linear,
+guided) travel a few to a task, so that the scheduler's round trip is paid once for them. A worker
+that dies costs only its task, which the scheduler runs again elsewhere (retries)."""
 from __future__ import annotations
 
 import contextlib
-import io
 import logging
 import os
 import signal
@@ -12,9 +13,11 @@ import sys
 import threading
 import time
 from concurrent.futures import CancelledError
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from ..errors import RetimeError
+from ..method import Request
 from .jobs import Clip, check_inputs_kept, with_absolute_paths
 from .manifest import Manifest, clip_hash
 from .layout import INDEX_NAME, SUMMARY_NAME
@@ -22,30 +25,73 @@ from .lock import FolderLock
 from .summary import clip_row, read_warp, write_index_html, write_summary_csv
 
 MANIFEST_SAVE_INTERVAL = 1.0  # seconds: often enough for Ctrl-C to keep what finished, rarely enough for 10^4 clips
+#: methods whose clips take well under a second: several small clips travel in one task, so that the
+#: scheduler's round trip (~10 ms) is paid once for them
+QUICK_METHODS = ("linear", "guided")
+MAX_GROUP = 8  # clips per task at most
+TASKS_PER_WORKER = 4  # a task holds at most 1/(this x workers) of the batch's bytes, so the last ones still spread
 
 
-def clip_argv(clip: Clip, method: str, outputs: dict[str, Path], gravity_scale: float | None = None) -> list[str]:
-    """The single-clip command line that makes this clip's outputs."""
+@dataclass(frozen=True)
+class Task:
+    """One clip's work as a worker gets it (pickled): the method, the input file, the request (its
+    settings included; None for check) and where its outputs go. A guided reference travels as its
+    path and is read on the worker."""
+
+    method: str
+    motion: Path
+    outputs: dict
+    request: Request | None = None
+    reference: Path | None = None
+
+
+def clip_task(clip: Clip, method: str, outputs: dict[str, Path], gravity_scale: float | None = None) -> Task:
+    """What makes this clip's outputs: the request the single-clip command would make of its options."""
     if method == "check":
-        return ["check", str(clip.motion), "--report", str(outputs["report"]), "--plot", str(outputs["plot"])]
-    argv = [method, str(clip.motion), "-o", str(outputs["bvh"]), "--warp", str(outputs["warp"])]
-    if clip.duration is not None:
-        argv += ["--duration", repr(clip.duration)]
-    elif clip.scale is not None:
-        argv += ["--scale", repr(clip.scale)]
-    for src, dst in clip.keytimes:
-        argv += ["--keytime", f"{src!r}={dst!r}"]
-    if clip.reference is not None:
-        argv += ["--reference", str(clip.reference)]
-    if clip.blend is not None:
-        argv += ["--blend", repr(clip.blend)]
-    if method == "physics":
-        argv += ["--report", str(outputs["report"])]
-        if gravity_scale is not None:
-            argv += ["--gravity-scale", repr(gravity_scale)]
-    if method in ("guided", "physics"):  # linear has no progress output to silence
-        argv.append("--quiet")
-    return argv
+        return Task(method, clip.motion, outputs)
+    from ..method import settings_type
+
+    options = {}
+    if method == "guided" and clip.blend is not None:
+        options["blend"] = clip.blend
+    if method == "physics" and gravity_scale is not None:
+        options["gravity_scale"] = gravity_scale
+    settings = settings_type(method)(**options)
+    request = Request(clip.duration, clip.scale if clip.duration is None else None, clip.keytimes, settings)
+    return Task(method, clip.motion, outputs, request, clip.reference)
+
+
+def task_groups(todo: list[int], method: str, workers: int, sizes: dict[int, int]) -> list[list[int]]:
+    """``todo`` as the tasks the scheduler gets, longest first (``sizes``: each clip's input in bytes,
+    which grows with its frames): the longest-processing-time order, so that no long clip starts
+    last while the other workers idle. For the quick methods consecutive clips share a task while
+    together they hold at most 1/(TASKS_PER_WORKER x workers) of the bytes (and MAX_GROUP clips)."""
+    order = sorted(todo, key=lambda i: (-sizes.get(i, 0), i))
+    if method not in QUICK_METHODS:
+        return [[i] for i in order]
+    budget = sum(sizes.get(i, 0) for i in order) / (TASKS_PER_WORKER * max(1, workers))
+    groups: list[list[int]] = []
+    held = 0
+    for i in order:
+        size = sizes.get(i, 0)
+        if groups and len(groups[-1]) < MAX_GROUP and held + size <= budget:
+            groups[-1].append(i)
+            held += size
+        else:
+            groups.append([i])
+            held = size
+    return groups
+
+
+def input_sizes(clips: list[Clip], todo: list[int]) -> dict[int, int]:
+    """Each clip's input file size in bytes (0 when it cannot be read: it fails quickly)."""
+    out = {}
+    for i in todo:
+        try:
+            out[i] = clips[i].motion.stat().st_size
+        except OSError:
+            out[i] = 0
+    return out
 
 
 # ---------------------------------------------------------------------------------------- on a worker
@@ -55,75 +101,59 @@ def prepare_worker() -> None:
     __import__("retime.physics.api")
 
 
-def _error_line(stderr: str, returncode) -> str:
-    lines = [line.strip() for line in stderr.splitlines() if line.strip()]
-    errors = [line for line in lines if ": error:" in line]
-    if errors:
-        return errors[-1]
-    return lines[-1] if lines else f"exit code {returncode}"
-
-
-class _PerThreadStream:
-    """sys.stdout or sys.stderr on a worker: what a task prints goes to that task's own buffer. A
-    worker with several threads runs several clips at once, and contextlib.redirect_stderr swaps
-    the one process-wide stream (clips read each other's errors)."""
-
-    def __init__(self, stream):
-        self.stream = stream
-        self.local = threading.local()
-
-    def write(self, text):
-        return (getattr(self.local, "buffer", None) or self.stream).write(text)
-
-    def flush(self):
-        (getattr(self.local, "buffer", None) or self.stream).flush()
-
-    def __getattr__(self, name):
-        return getattr(self.stream, name)
-
-
-_INSTALL = threading.Lock()
-
-
-@contextlib.contextmanager
-def _captured(name: str):
-    """This thread's prints to sys.<name>, into a buffer (yielded)."""
-    with _INSTALL:
-        if not isinstance(getattr(sys, name), _PerThreadStream):
-            setattr(sys, name, _PerThreadStream(getattr(sys, name)))
-        stream = getattr(sys, name)
-    buffer = stream.local.buffer = io.StringIO()
-    try:
-        yield buffer
-    finally:
-        stream.local.buffer = None
-
-
-def run_clip(argv: list[str]) -> dict:
-    """One clip, on a worker: ``retime.cli.main(argv)`` with its output captured. Never raises for
-    the clip's own failures; those come back as {'status': 'failed', 'error': one line}."""
+def run_tasks(tasks: list[Task]) -> list[dict]:
+    """Clips on a worker, one after the other (see :func:`run_task`)."""
     import numba
-
-    from ..cli import main
 
     # clips run side by side, a worker per core: numba's parallel kernels (guided's scores, long physics
     # clips' objective) would put two threads on each core, and a busy core stalls each parallel call
     # (6x on this machine); their results do not depend on the thread count. Thread-local, so per task.
     numba.set_num_threads(1)
+    return [run_task(task) for task in tasks]
+
+
+def run_task(task: Task) -> dict:
+    """One clip: read, retime (or check) and write its outputs, which appear together or not at all.
+    Never raises for the clip's own failures; those come back as {'status': 'failed', 'error': one
+    line}, worded as the single-clip command says them."""
+    from ..io_util import all_or_none
+
     start = time.perf_counter()
     try:
-        with _captured("stdout"), _captured("stderr") as err:
-            try:
-                code = main(argv)
-            except SystemExit as e:  # argparse rejecting an option
-                code = e.code
+        with all_or_none():
+            _run(task)
+        error = ""
+    except RetimeError as e:
+        error = f"retime {task.method}: error: {e}"
+    except OSError as e:  # e.g. a full disk
+        where = f"{e.filename}: " if getattr(e, "filename", None) else ""
+        error = f"retime {task.method}: error: {where}{e.strerror or e}"
     except Exception as e:  # a bug in retime: recorded, and the batch goes on
-        return {"status": "failed", "error": f"{type(e).__name__}: {e}".splitlines()[0],
-                "seconds": time.perf_counter() - start}
+        error = f"{type(e).__name__}: {e}"
     seconds = time.perf_counter() - start
-    if code == 0 or (argv[0] == "check" and code == 1):  # check's 1 is a verdict (not physical), not a failure
-        return {"status": "done", "error": "", "seconds": seconds}
-    return {"status": "failed", "error": _error_line(err.getvalue(), code), "seconds": seconds}
+    return {"status": "failed" if error else "done", "error": error.splitlines()[0] if error else "",
+            "seconds": seconds}
+
+
+def _run(task: Task) -> None:
+    from ..method import solve
+    from ..motion import load_motion
+    from ..outputs import write_check, write_retiming
+
+    motion = load_motion(task.motion)
+    out = task.outputs
+    if task.method == "check":
+        from ..physics.check import check_clip
+
+        if motion.n_frames < 4:
+            raise RetimeError(f"{task.motion}: checking needs at least 4 frames, the motion has {motion.n_frames}")
+        write_check(check_clip(motion), out["report"], out["plot"], title=str(task.motion))
+        return  # not physical is a verdict, not a failure
+    request = task.request
+    if task.reference is not None:
+        request = replace(request, settings=replace(request.settings, reference=load_motion(task.reference)))
+    result = solve(task.method, motion, request)
+    write_retiming(task.method, motion, result, out["bvh"], out["warp"], out.get("report"), source=task.motion)
 
 
 # ------------------------------------------------------------------------------------------ driver
@@ -363,31 +393,34 @@ def _compute(client, clips, outputs, digests, todo, results, manifest, method, g
                   f"(start one with: dask worker {scheduler})", file=sys.stderr, flush=True)
         client.run(prepare_worker)
         index_of = {}
-        for i in todo:
-            future = client.submit(run_clip, clip_argv(clips[i], method, outputs[i], gravity_scale),
-                                   pure=False, retries=2)
-            index_of[future.key] = i
+        workers = max(1, len(client.scheduler_info().get("workers", {})))
+        for group in task_groups(todo, method, workers, input_sizes(clips, todo)):
+            tasks = [clip_task(clips[i], method, outputs[i], gravity_scale) for i in group]
+            future = client.submit(run_tasks, tasks, pure=False, retries=2)
+            index_of[future.key] = group
             futures.append(future)
         counts = {"done": 0, "failed": 0}
         last_save = -MANIFEST_SAVE_INTERVAL  # the first finished clip is recorded at once
         with tqdm(total=len(todo), unit="clip", file=sys.stderr, disable=quiet) as bar:
             for future in as_completed(futures):
-                i = index_of[future.key]
+                group = index_of[future.key]
                 try:
-                    result = future.result()
+                    done = future.result()
                 except (CancelledError, CommClosedError):  # not by us (that is a KeyboardInterrupt): the
                     # scheduler went away; what its workers wrote before is read back from the disk
                     raise SchedulerLost(f"the Dask scheduler at {scheduler or 'the local cluster'} was lost") from None
                 except Exception as e:  # the task itself failed: a worker died more often than retries
-                    result = {"status": "failed", "error": f"{type(e).__name__}: {e}".splitlines()[0], "seconds": None}
-                results[i] = result
-                if result["status"] == "done":
-                    manifest.record(clips[i], digests[i], result["seconds"])
-                else:
-                    manifest.forget(clips[i])
-                counts[result["status"]] += 1
+                    failed = {"status": "failed", "error": f"{type(e).__name__}: {e}".splitlines()[0], "seconds": None}
+                    done = [failed] * len(group)
+                for i, result in zip(group, done):
+                    results[i] = result
+                    if result["status"] == "done":
+                        manifest.record(clips[i], digests[i], result["seconds"])
+                    else:
+                        manifest.forget(clips[i])
+                    counts[result["status"]] += 1
                 bar.set_postfix(counts, refresh=False)
-                bar.update(1)
+                bar.update(len(group))
                 if time.monotonic() - last_save >= MANIFEST_SAVE_INTERVAL:
                     manifest.save()
                     last_save = time.monotonic()

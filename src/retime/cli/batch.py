@@ -5,6 +5,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import RetimeError
+from ..method import METHODS  # every registered method, and check
 from .common import keytime, positive_float, positive_int
 from .physics import _gravity_scale
 
@@ -29,7 +30,7 @@ def register(sub):
     p.add_argument("inputs", nargs="+", metavar="INPUT",
                    help="motion files (.bvh, .amc; .fbx, .glb, .gltf with bpy), folders (walked for them), or jobs files (.csv, .toml)")
     p.add_argument("-o", "--output", required=True, metavar="OUTDIR", help="folder for the outputs (created if needed)")
-    p.add_argument("--method", required=True, choices=("linear", "guided", "physics", "check"),
+    p.add_argument("--method", required=True, choices=(*METHODS, "check"),
                    help="the retiming method, or check: each clip's physical plausibility as captured, ranked")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--duration", type=positive_float, metavar="SEC", help="every clip's output duration in seconds")

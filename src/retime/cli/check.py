@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from ..errors import RetimeError
 from ..io_util import check_outputs
@@ -47,12 +46,7 @@ def run(args):
     if worst:
         print("worst frames: " + ", ".join(f"{i} ({result.times[i]:.2f} s, {result.residual[i]:.2f} body weights)"
                                            for i in worst))
-    if args.report:
-        from ..physics.report import write_report
+    from ..outputs import write_check
 
-        write_report(result.report(), args.report)
-    if args.plot:
-        from ..viz.check import plot_check
-
-        plot_check(result, args.plot, title=Path(args.motion).name)  # the file, not the whole path
+    write_check(result, args.report, args.plot, title=args.motion)
     return 0 if result.physical else 1

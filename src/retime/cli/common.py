@@ -7,9 +7,8 @@ from pathlib import Path
 
 from ..errors import RetimeError
 from ..io_util import check_not_input, check_outputs
-from ..motion import WRITABLE, load_motion, save_motion
+from ..motion import WRITABLE, load_motion
 from ..motion.blender_io import SCENE_SUFFIXES, require_bpy
-from ..warp import TimingCurve
 
 
 def add_motion_args(p):
@@ -132,9 +131,14 @@ def check_found_inputs(args, *motions):
             check_not_input(getattr(args, k), *found)
 
 
-def write_outputs(args, motion, curve: TimingCurve, retimed):
-    save_motion(retimed, args.output, source=args.motion)
-    if args.warp:
-        curve.to_csv(args.warp, retimed.fps)
+def write_outputs(args, name, motion, result, retimed=None):
+    """Method ``name``'s result: the retimed motion and the warp (:func:`retime.outputs.write_retiming`)."""
+    from ..outputs import write_retiming
+
+    retimed = write_retiming(name, motion, result, args.output, args.warp, source=args.motion, retimed=retimed)
+    said_written(args, motion, retimed)
+
+
+def said_written(args, motion, retimed):
     print(f"wrote {args.output}: {retimed.n_frames} frames, {retimed.duration:.3f} s "
           f"(source {motion.duration:.3f} s)" + (f"; warp {args.warp}" if args.warp else ""))

@@ -4,9 +4,11 @@ from __future__ import annotations
 import argparse
 
 from ..errors import RetimeError
+from ..guided.limits import MAX_SKIP_LIMIT
+from ..guided.features import FeatureWeights
+from ..guided.method import SCORES, Settings
 from ..method import Request, solve
 from ..motion import load_motion
-from ..warp import apply_timing
 from .common import check_found_inputs, frame_kwargs, add_duration_args, add_motion_args, add_output_args, check_output, load_input, nonnegative_float, positive_float, positive_int, unit_float, write_outputs
 
 
@@ -31,33 +33,39 @@ def register(sub):
     add_duration_args(p, free=True)
     p.add_argument("--reference", metavar="REF", help="motion whose timing to imitate (same skeleton; default: the input)")
     p.add_argument("--reference-fps", type=positive_float, metavar="HZ", help="frame rate of an .amc reference (default 120)")
-    p.add_argument("--max-skip", type=int, default=8, metavar="S",
+    d = Settings()  # every default below is Settings', passed on only when given
+    p.add_argument("--max-skip", type=int, metavar="S",
                    help="skip limit: an output frame advances at most S grid frames, so playback is at most S times "
-                        "the original speed (S/U when the grid is upsampled U times; default 8)")
-    p.add_argument("--neighbors", type=int, default=3, metavar="K", help="nearest reference features per score (default 3)")
+                        f"the original speed (S/U when the grid is upsampled U times; default {d.max_skip}, "
+                        f"at most {MAX_SKIP_LIMIT})")
+    p.add_argument("--neighbors", type=int, metavar="K",
+                   help=f"nearest reference features per score (default {d.neighbors})")
     p.add_argument("--fast", action="store_true", help="coarse-to-fine heuristic instead of the exact search (not with --free)")
+    w = FeatureWeights()
     p.add_argument("--weights", type=weights_arg, metavar="P,V,A[,H]",
                    help="feature weights: pose, velocity (s), acceleration (s^2) and root height "
-                        "(default 1,0.1,0.01,1; H=0 gives the paper's torso-frame features only)")
-    p.add_argument("--analysis-fps", type=positive_float, default=30.0, metavar="HZ",
-                   help="rate of the search (default 30 Hz, as in the paper)")
+                        f"(default {w.pose:g},{w.velocity:g},{w.acceleration:g},{w.root_height:g}; "
+                        "H=0 gives the paper's torso-frame features only)")
+    p.add_argument("--analysis-fps", type=positive_float, metavar="HZ",
+                   help=f"rate of the search (default {d.analysis_fps:g} Hz, as in the paper)")
     p.add_argument("--upsample", type=int, metavar="U",
                    help="grid frames per analysis frame (default: automatic; more lets the warp slow down further)")
-    p.add_argument("--smoothing", type=positive_int, default=5, metavar="W",
-                   help="moving-average window of the warp in analysis frames (default 5; 1 = none)")
+    p.add_argument("--smoothing", type=positive_int, metavar="W",
+                   help=f"moving-average window of the warp in analysis frames (default {d.smoothing}; 1 = none)")
     p.add_argument("--adaptive-smoothing", action="store_true",
                    help="average each output frame over the source time it covers (window = local compression)")
     p.add_argument("--approx", type=nonnegative_float, metavar="EPS",
                    help="approximate nearest neighbours (KD-tree) with relative error EPS, for long references")
-    p.add_argument("--score", choices=("steady", "paper"),
-                   help="local score: steady (default; sub-frame steps and a convex penalty on speed changes, "
-                        "so a steady motion plays at a steady speed) or paper (Hsu et al.'s eq. 2 on whole grid frames)")
+    p.add_argument("--score", choices=SCORES,
+                   help=f"local score: steady{' (default' if d.score == 'steady' else ''}; sub-frame steps and a convex "
+                        "penalty on speed changes, so a steady motion plays at a steady speed) or "
+                        f"paper{' (default)' if d.score == 'paper' else ''} (Hsu et al.'s eq. 2 on whole grid frames)")
     p.add_argument("--steadiness", type=nonnegative_float, metavar="L",
-                   help="steady score: weight of the speed-change penalty (default 3; lower keeps short "
+                   help=f"steady score: weight of the speed-change penalty (default {d.steadiness:g}; lower keeps short "
                         "flights at their speed, higher plays more evenly)")
     p.add_argument("--blend", type=unit_float, metavar="W",
                    help="the reference's influence from 0 (the keytime spline warp, as linear --smooth) to 1 "
-                        "(the guided warp; default)")
+                        f"(the guided warp; default {d.blend:g})")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=run)
 
@@ -69,8 +77,6 @@ def weights_arg(text):
         raise argparse.ArgumentTypeError(f"weights must be 3 or 4 numbers like 1,0.1,0.01, got {text!r}") from None
     if len(vals) not in (3, 4):
         raise argparse.ArgumentTypeError(f"weights must be 3 or 4 numbers like 1,0.1,0.01, got {text!r}")
-    from ..guided import FeatureWeights
-
     try:
         return FeatureWeights(*vals)
     except RetimeError as e:
@@ -87,22 +93,19 @@ def run(args):
         reference = load_motion(args.reference, fps=args.reference_fps, **frame_kwargs(args))
         check_found_inputs(args, reference)
     from ..guided import adaptive_smooth
-    from ..guided.method import Settings
 
-    settings = Settings(reference=reference, free=bool(getattr(args, "free", False)), max_skip=args.max_skip,
-                        neighbors=args.neighbors, fast=args.fast, analysis_fps=args.analysis_fps, weights=args.weights,
-                        upsample=args.upsample, smoothing=args.smoothing,
-                        knn="approx" if args.approx is not None else "exact", eps=args.approx or 0.0,
-                        progress=not args.quiet,
-                        **{k: v for k, v in (("score", args.score), ("steadiness", args.steadiness),
-                                             ("blend", args.blend)) if v is not None})
+    options = ("max_skip", "neighbors", "analysis_fps", "weights", "upsample", "smoothing", "score", "steadiness", "blend")
+    given = {k: getattr(args, k) for k in options if getattr(args, k) is not None}
+    if args.approx is not None:
+        given.update(knn="approx", eps=args.approx)
+    settings = Settings(reference=reference, free=bool(getattr(args, "free", False)), fast=args.fast,
+                        progress=not args.quiet, **given)
     answer = solve("guided", motion, Request(args.duration, args.scale, args.keytime, settings))
-    result = answer.detail
-    curve = result.curve
-    retimed = adaptive_smooth(motion, curve) if args.adaptive_smoothing else apply_timing(motion, curve)
-    write_outputs(args, motion, curve, retimed)
+    retimed = adaptive_smooth(motion, answer.curve) if args.adaptive_smoothing else None  # None: through the curve
+    write_outputs(args, "guided", motion, answer, retimed)
     if not args.quiet:
-        kind = "exact" if result.exact else "heuristic"
-        print(f"objective {result.objective:.4g} ({kind}; n={result.n}, m={result.m}, r={result.r}, s={result.s}, "
-              f"k={result.k}); scores {result.stats.objective_s:.3f} s, search {result.stats.optimization_s:.3f} s")
+        i, t = answer.info, answer.report.summary["timings"]
+        kind = "exact" if i["exact"] else "heuristic"
+        print(f"objective {i['objective']:.4g} ({kind}; n={i['n']}, m={i['m']}, r={i['r']}, s={i['s']}, "
+              f"k={i['k']}); scores {t['scores']:.3f} s, search {t['search']:.3f} s")
     return 0

@@ -1,6 +1,5 @@
 from ..errors import RetimeError
 from ..method import Request, solve
-from ..warp import apply_timing
 from .common import add_duration_args, add_motion_args, add_output_args, check_output, load_input, write_outputs
 
 
@@ -28,5 +27,5 @@ def run(args):
     if m.n_frames < 2:
         raise RetimeError(f"{args.motion}: a single frame has no timing to change")
     result = solve("linear", m, Request(args.duration, args.scale, args.keytime, Settings(smooth=args.smooth)))
-    write_outputs(args, m, result.curve, apply_timing(m, result.curve))
+    write_outputs(args, "linear", m, result)
     return 0

@@ -5,10 +5,9 @@ import argparse
 import math
 
 from ..physics.constants import MAX_GRAVITY, G
-from ..physics.method import MASS_FACTORS, Settings
-from ..warp import apply_timing
+from ..physics.method import MASS_FACTORS, OBJECTIVES, OPTIMIZER_NAMES, STARTS, Settings
 from .common import add_duration_args, add_motion_args, add_output_args, check_output, load_input, positive_float, \
-    write_outputs
+    said_written
 
 EPILOG = """examples:
   retime physics 16_06.amc -o half.bvh --scale 0.5 --report half.json
@@ -71,21 +70,25 @@ def register(sub):
     g.add_argument("--gravity-scale", type=_gravity_scale, metavar="G", help="gravity times G (0.25: a quarter of the gravity)")
     p.add_argument("--mass", type=_mass, action="append", default=[], metavar="SEGMENT=FACTOR",
                    help="multiply a segment's mass (skeleton joint name, e.g. lfemur=10); repeat for several")
-    p.add_argument("--objective", choices=("match", "minimize"), default="match",
-                   help="match the original's joint torques (default) or minimize them")
+    d = Settings()  # every default below is Settings', passed on only when given
+    p.add_argument("--objective", choices=OBJECTIVES,
+                   help=f"match the original's joint torques or minimize them (default {d.objective})")
     p.add_argument("--body", metavar="BODY.toml", help="body model (masses, inertias, soles, torque limits); default: "
                    "anthropometric segments of 70 kg, limits from the motion")
     p.add_argument("--write-body", metavar="BODY.toml", help="write the body model used (with the torque limits estimated "
                    "from the motion) for editing")
     p.add_argument("--contacts", metavar="CONTACTS.csv", help="foot contact states per frame (default: detected)")
     p.add_argument("--friction", type=positive_float, metavar="MU", help="friction coefficient (default: the body's, 0.5)")
-    p.add_argument("--torque-scale", type=positive_float, default=1.0, metavar="X", help="scale all torque limits")
-    p.add_argument("--method", choices=("newton", "lbfgs", "gd", "slsqp"), default=Settings.optimizer,
-                   help="optimizer: L-BFGS polished by Newton's method on the banded problem (default), "
-                        "L-BFGS alone, the paper's gradient descent, or SLSQP")
-    p.add_argument("--start", choices=("global", "uniform"), default="global",
+    p.add_argument("--torque-scale", type=positive_float, metavar="X",
+                   help=f"scale all torque limits (default {d.torque_scale:g})")
+    p.add_argument("--method", dest="optimizer", choices=OPTIMIZER_NAMES,
+                   help="optimizer: L-BFGS polished by Newton's method on the banded problem (newton), "
+                        "L-BFGS alone (lbfgs), the paper's gradient descent (gd), or SLSQP "
+                        f"(default {d.optimizer})")
+    p.add_argument("--start", choices=STARTS,
                    help="where the optimizer starts: the grid-optimal timing found by dynamic programming "
-                        "(default; not with keytimes) or the uniform timing, as in the paper")
+                        "(global; not with keytimes) or the uniform timing, as in the paper "
+                        f"(uniform; default {d.start})")
     p.add_argument("--report", metavar="REPORT.json", help="per output frame: contact, feasibility, distance, "
                    "torque norm; each source frame's feasible region (for retime plot --regions)")
     p.add_argument("--quiet", action="store_true", help="no progress output")
@@ -94,23 +97,24 @@ def register(sub):
 
 def run(args):
     from ..method import Request, solve
-    from ..physics.report import flight_speeds, write_report
+    from ..outputs import write_retiming
+    from ..physics.report import flight_speeds
 
     check_output(args)
     m = load_input(args)
     masses = {}
     for name, f in args.mass:
         masses[name] = masses.get(name, 1.0) * f
+    given = {k: getattr(args, k) for k in ("objective", "torque_scale", "optimizer", "start")
+             if getattr(args, k) is not None}
     settings = Settings(gravity=args.gravity, gravity_scale=args.gravity_scale, mass_factors=masses,
-                        objective=args.objective, body=args.body, contacts=args.contacts, friction=args.friction,
-                        torque_scale=args.torque_scale, optimizer=args.method, start=args.start,
-                        progress=not args.quiet)
+                        body=args.body, contacts=args.contacts, friction=args.friction, progress=not args.quiet,
+                        **given)
     answer = solve("physics", m, Request(args.duration, args.scale, args.keytime, settings))
     result = answer.detail
     duration = None if args.duration is None and args.scale is None else answer.curve.duration  # None: free
-    write_outputs(args, m, result.curve, apply_timing(m, result.curve))
-    if args.report:
-        write_report(result.report, args.report, regions=result.regions)  # `retime plot --regions` draws them
+    retimed = write_retiming("physics", m, answer, args.output, args.warp, args.report, source=args.motion)
+    said_written(args, m, retimed)
     if args.write_body:
         from ..physics.body import write_body
 

@@ -21,7 +21,10 @@ from typing import Callable, Iterator
 import numpy as np
 
 from ..errors import RetimeError
-from ..method import Request, solve
+from ..guided.method import Settings as GuidedSettings
+from ..method import Request, session, solve
+from ..physics.constants import G
+from ..physics.method import OBJECTIVES, Settings as PhysicsSettings
 from ..warp import TimingCurve
 
 
@@ -190,20 +193,20 @@ class GuidedMethod(Method):
                    "best match the reference, by exact dynamic programming (Hsu et al. 2007). Points you move or add "
                    "become keytimes; unlocked points follow the solution.")
     edits_are_keytimes = True
+    _d = GuidedSettings()  # the defaults are Settings'
     params = (
         Param("reference", "Reference", "choice", "self",
               choices=(("self", "the motion itself (keep its timing)"), ("reference", "the --reference motion"))),
-        Param("max_skip", "Skip limit", "number", 8.0, 1.0, 32.0, 1.0, "frames",
+        Param("max_skip", "Skip limit", "number", float(_d.max_skip), 1.0, 32.0, 1.0, "frames",
               help="most analysis frames one output frame may advance (Hsu §3.1)"),
-        Param("neighbors", "Neighbours", "number", 3.0, 1.0, 10.0, 1.0, help="k nearest reference features (Hsu §4.3)"),
-        Param("fast", "Coarse-to-fine", "bool", False, help="the heuristic of Hsu §3.3 instead of the exact search"),
-        Param("blend", "Reference influence", "slider", 1.0, 0.0, 1.0, 0.05,
+        Param("neighbors", "Neighbours", "number", float(_d.neighbors), 1.0, 10.0, 1.0,
+              help="k nearest reference features (Hsu §4.3)"),
+        Param("fast", "Coarse-to-fine", "bool", _d.fast, help="the heuristic of Hsu §3.3 instead of the exact search"),
+        Param("blend", "Reference influence", "slider", _d.blend, 0.0, 1.0, 0.05,
               help="0: the smooth spline through the keytimes; 1: the guided warp; between: a mix (Hsu §5)"),
     )
 
     def solve(self, job):
-        from ..guided.method import Settings
-
         params = job.params
         reference = None
         if params.get("reference") == "reference":
@@ -211,9 +214,9 @@ class GuidedMethod(Method):
                 raise RetimeError("no reference motion: start the editor with --reference REF to use one")
             reference = self.clip.reference
         keys = keytimes_of(job.points, locked_only=True)
-        settings = Settings(reference=reference, max_skip=int(params.get("max_skip", 8)),
-                            neighbors=int(params.get("neighbors", 3)), fast=bool(params.get("fast", False)),
-                            blend=float(params.get("blend", Settings.blend)))
+        given = {k: type(getattr(self._d, k))(params[k]) for k in ("max_skip", "neighbors", "fast", "blend")
+                 if k in params}
+        settings = GuidedSettings(reference=reference, **given)
         result = solve("guided", self.clip.motion, Request(duration=job.duration, keytimes=keys, settings=settings))
         curve = result.curve
         info = {"keytimes": len(keys), "objective": result.info["objective"], "exact": result.info["exact"]}
@@ -246,6 +249,7 @@ class PhysicsMethod(Method):
     description = ("The timing that keeps the motion physically plausible (contact forces, joint torques) for the "
                    "new duration, keytimes, gravity or masses (McCann et al. 2006). Points move vertically.")
     point_axes = "s"
+    _d = PhysicsSettings()  # the defaults are Settings'
     MAX_ITER = 300
     RUN_SECONDS = 2.0
     QUICK_SECONDS = 0.06
@@ -255,12 +259,12 @@ class PhysicsMethod(Method):
     def param_specs(cls, clip):
         parts = [("none", "none (all masses as estimated)")] + [(n, f"{n} and below") for n in _limb_roots(clip)]
         return (
-            Param("gravity", "Gravity", "number", 9.81, 0.5, 40.0, 0.1, "m/s²", help="strength of gravity (down)"),
-            Param("objective", "Objective", "choice", "match",
-                  choices=(("match", "match the original torques"), ("minimize", "minimize torques"))),
+            Param("gravity", "Gravity", "number", G, 0.5, 40.0, 0.1, "m/s²", help="strength of gravity (down)"),
+            Param("objective", "Objective", "choice", cls._d.objective,
+                  choices=tuple(zip(OBJECTIVES, ("match the original torques", "minimize torques")))),
             Param("mass_part", "Heavier / lighter part", "choice", "none", choices=tuple(parts)),
             Param("mass_factor", "Mass factor", "number", 1.0, 0.1, 10.0, 0.1, "×", help="that part's mass times this"),
-            Param("alpha", "Feasibility weight", "number", 10.0, 0.1, 10000.0, 1.0,
+            Param("alpha", "Feasibility weight", "number", cls._d.alpha, 0.1, 10000.0, 1.0,
                   help="α of Eq. 14 (torque matching has weight 1)"),
         )
 
@@ -270,24 +274,28 @@ class PhysicsMethod(Method):
         self.key = None
         self.seen = None  # the session version whose edits rs reflects
         self.temp_lock = None  # index locked only because the user is holding it
-        self.prepared = None
 
     def _key(self, params):
-        return (float(params.get("gravity", 9.81)), params.get("objective", "match"), params.get("mass_part", "none"),
-                float(params.get("mass_factor", 1.0)), float(params.get("alpha", 10.0)))
+        return (float(params.get("gravity", G)), params.get("objective", self._d.objective),
+                params.get("mass_part", "none"), float(params.get("mass_factor", 1.0)),
+                float(params.get("alpha", self._d.alpha)))
 
     def _build(self, job, key):
-        from ..physics.api import make_problem  # noqa: PLC0415
-        from ..physics.optimize import RetimingSession  # noqa: PLC0415
-
-        terms_pd_regions_obj = _physics_prepared(self.clip, key, job.status, job.gone)
-        self.prepared = terms_pd_regions_obj
-        obj = terms_pd_regions_obj[3]  # shared by the sessions: its lookup hints are each problem's own
         keytimes = {(round(p.s, 9), round(p.t, 9)) for p in job.points[1:-1] if p.locked}
         keytimes = sorted(keytimes | {(round(a, 9), round(b, 9)) for a, b in job.keytimes})
-        problem = make_problem(obj, self.clip.motion.duration, job.duration, keytimes)
-        self.rs = RetimingSession(problem, fps=self.clip.motion.fps)
+        request = Request(duration=job.duration, keytimes=keytimes, settings=self._settings(key))
+        self.rs = _physics_session(self.clip, request, job.status, job.gone)
         self.key, self.temp_lock = key, None
+
+    def _settings(self, key):
+        """The physics Settings of the page's controls: gravity is a strength down the clip's up axis."""
+        gravity, objective, part, factor, alpha = key
+        masses = {}
+        if part != "none" and factor != 1.0:
+            sk = self.clip.motion.skeleton
+            root = sk.index(part)
+            masses = {sk.names[j]: factor for j in range(sk.n_joints) if _descends(sk.parents, j, root)}
+        return PhysicsSettings(gravity_scale=gravity / G, mass_factors=masses, objective=objective, alpha=alpha)
 
     def _replay(self, ops):
         rs = self.rs
@@ -305,7 +313,7 @@ class PhysicsMethod(Method):
                 if self.temp_lock is not None and self.temp_lock != i:
                     self._let_go()
                 hold = bool(op.get("hold"))
-                was_locked = i in rs.problem.locks
+                was_locked = rs.is_locked(i)
                 rs.move(i, op["s"], lock=hold)
                 if hold and not was_locked:
                     self.temp_lock = i
@@ -372,9 +380,7 @@ class PhysicsMethod(Method):
                "keytimes": len(rs.keytimes), "constraint_violation": info.constraint_violation}
         feas = None
         if final:
-            from ..physics.feasibility import spline_feasibility
-
-            found = spline_feasibility(rs.spline, self.prepared[1], self.prepared[2], fps)
+            found = rs.feasibility(fps)
             feas = strip_shade(found.residual, found.tol)
             out["feasible_fraction"] = round(found.fraction, 4)
         return Solution(curve, points=pts, feasibility=feas, info=out, final=final, keytimes=list(rs.keytimes))
@@ -387,38 +393,34 @@ def strip_shade(residual, tol):
     return np.where(r <= tol, 1.0, np.clip(1.0 - np.log10(np.maximum(r, tol) / tol) / 2.0, 0.0, 0.95))
 
 
-_PHYSICS_CACHE: dict = {}  # (id(motion), key) -> (terms, pd, regions, obj); a few entries
+_PHYSICS_CACHE: dict = {}  # (id(motion), settings) -> a session's .shared (retime.physics.method.Shared); a few
 _CACHE_LOCK = threading.Lock()  # guards the cache and the per-setting locks, never a computation
 _SETTING_LOCKS: dict = {}
 
 
-def _physics_prepared(clip, key, status, gone=lambda: False):
-    """Dynamics, regions and objective for a clip and setting: computed once, shared by sessions.
-    Different settings compute side by side (each computation owns its solver state); one
-    setting is computed by one thread while the others wait for it. ``gone``: the asking
-    session's tab has closed or the editor is stopping; the computation then stops."""
-    from ..physics.api import prepare  # noqa: PLC0415
-
-    gravity, objective, part, factor, alpha = key
-    cache_key = (id(clip.motion), key)
+def _physics_session(clip, request, status, gone=lambda: False):
+    """A live physics session of the clip (:func:`retime.method.session`). Its dynamics, regions and
+    objective (``.shared``) are computed once per clip and setting and shared by the sessions that
+    follow. Different settings compute side by side (each computation owns its solver state); one
+    setting is computed by one thread while the others wait for it. ``gone``: the asking session's
+    tab has closed or the editor is stopping; the computation then stops."""
+    cache_key = (id(clip.motion), _hashable(request.settings))
     with _CACHE_LOCK:
-        if cache_key in _PHYSICS_CACHE:
-            return _PHYSICS_CACHE[cache_key]
+        shared = _PHYSICS_CACHE.get(cache_key)
         setting_lock = _SETTING_LOCKS.setdefault(cache_key, threading.Lock())
+    if shared is not None:
+        return session("physics", clip.motion, request, shared=shared)
     with setting_lock:
         with _CACHE_LOCK:
-            if cache_key in _PHYSICS_CACHE:
-                return _PHYSICS_CACHE[cache_key]
-            terms = next((v[0] for (m, _), v in _PHYSICS_CACHE.items() if m == id(clip.motion)), None)
+            shared = _PHYSICS_CACHE.get(cache_key)
+            # else a session under another setting lends its body dynamics; the regions are this setting's
+            other = next((v for (m, _), v in _PHYSICS_CACHE.items() if m == id(clip.motion)), None)
+        if shared is not None:
+            return session("physics", clip.motion, request, shared=shared)
         status("physics: computing the motion's dynamics and feasible regions (once per setting)…")
-        masses = None
-        if part != "none" and factor != 1.0:
-            sk = clip.motion.skeleton
-            root = sk.index(part)
-            masses = {sk.names[j]: factor for j in range(sk.n_joints) if _descends(sk.parents, j, root)}
         try:
-            out = prepare(clip.motion, gravity=(0.0, -gravity, 0.0), mass_factors=masses, objective=objective,
-                          alpha=alpha, terms=terms, cancel=gone)
+            live = session("physics", clip.motion, request, shared=other, cancel=gone)
+            out = live.shared
         except BaseException:  # failed or cancelled: nothing cached, so no lock kept for it either
             with _CACHE_LOCK:
                 _SETTING_LOCKS.pop(cache_key, None)
@@ -430,7 +432,12 @@ def _physics_prepared(clip, key, status, gone=lambda: False):
                 _SETTING_LOCKS.pop(old, None)
             _PHYSICS_CACHE[cache_key] = out
         status("")
-        return out
+        return live
+
+
+def _hashable(settings):
+    """A settings' cache key (its mass factors are a dict)."""
+    return tuple((k, tuple(sorted(v.items())) if isinstance(v, dict) else v) for k, v in vars(settings).items())
 
 
 def _descends(parents, j, root):
@@ -450,16 +457,16 @@ def _limb_roots(clip):
             if parents[j] >= 0 and (parents[j] == 0 or n_children[parents[j]] > 1) and n_children[j] > 0]
 
 
-METHODS: dict[str, type[Method]] = {m.name: m for m in (LinearMethod, GuidedMethod, PhysicsMethod)}
+ADAPTERS: dict[str, type[Method]] = {m.name: m for m in (LinearMethod, GuidedMethod, PhysicsMethod)}
 
 
 def register(method_cls: type[Method]) -> None:
-    METHODS[method_cls.name] = method_cls
+    ADAPTERS[method_cls.name] = method_cls
 
 
 def method_catalog(clip: Clip):
     out = []
-    for cls in METHODS.values():
+    for cls in ADAPTERS.values():
         reason = cls.availability(clip)
         out.append({"name": cls.name, "label": cls.label, "description": cls.description,
                     "available": reason is None, "reason": reason, "point_axes": cls.point_axes,
@@ -468,9 +475,9 @@ def method_catalog(clip: Clip):
 
 
 def check_params(method_name, values: dict, clip: Clip) -> dict:
-    cls = METHODS.get(method_name)
+    cls = ADAPTERS.get(method_name)
     if cls is None:
-        raise RetimeError(f"unknown method {method_name!r}; choose one of {', '.join(METHODS)}")
+        raise RetimeError(f"unknown method {method_name!r}; choose one of {', '.join(ADAPTERS)}")
     if not isinstance(values, dict):
         raise RetimeError("parameters must be a JSON object")
     known = {p.name: p for p in cls.param_specs(clip)}
@@ -481,4 +488,4 @@ def check_params(method_name, values: dict, clip: Clip) -> dict:
 
 
 def default_params(method_name, clip: Clip) -> dict:
-    return {p.name: p.default for p in METHODS[method_name].param_specs(clip)}
+    return {p.name: p.default for p in ADAPTERS[method_name].param_specs(clip)}

@@ -21,8 +21,8 @@ import numpy as np
 from ..errors import RetimeError
 from ..io_util import all_or_none
 from ..motion import save_bvh
-from ..warp import apply_timing, snap_duration
-from .methods import METHODS, Clip, ControlPoint, Job, Solution, check_params, default_params
+from ..warp import apply_timing, output_duration
+from .methods import ADAPTERS, Clip, ControlPoint, Job, Solution, check_params, default_params
 
 MAX_POINTS = 200
 MAX_OPS = 64  # edits in one message
@@ -53,7 +53,7 @@ class Session:
         S = clip.motion.duration
         self.points = [ControlPoint(0.0, 0.0, True), ControlPoint(S, S, True)]
         self.method = "linear"
-        self.params = {name: default_params(name, clip) for name in METHODS}
+        self.params = {name: default_params(name, clip) for name in ADAPTERS}
         self.adapters = {}
         self.version = 0
         self.solution: Solution | None = None
@@ -118,14 +118,14 @@ class Session:
         kind = op["op"]
         if kind == "move":
             i = self._index(op, points)
-            spline = METHODS[method].point_axes == "s"  # knots fixed in normalized time
+            spline = ADAPTERS[method].point_axes == "s"  # knots fixed in normalized time
             t = _num(op, "t") if not spline or i == len(points) - 1 else points[i].t
             self._move(points, i, t, _num(op, "s"), scale_inner=spline)
-            if METHODS[method].edits_are_keytimes and 0 < i < len(points) - 1:
+            if ADAPTERS[method].edits_are_keytimes and 0 < i < len(points) - 1:
                 points[i].locked = True
         elif kind == "add":
             self._add(points, _num(op, "t"), _num(op, "s"),
-                      bool(op.get("locked", False)) or METHODS[method].edits_are_keytimes)
+                      bool(op.get("locked", False)) or ADAPTERS[method].edits_are_keytimes)
         elif kind == "remove":
             i = self._index(op, points)
             if i in (0, len(points) - 1):
@@ -138,12 +138,12 @@ class Session:
             points[i].locked = bool(op.get("locked", True))
         elif kind == "method":
             name = op.get("method")
-            if name not in METHODS:
-                raise RetimeError(f"unknown method {name!r}; choose one of {', '.join(METHODS)}")
-            reason = METHODS[name].availability(self.clip)
+            if name not in ADAPTERS:
+                raise RetimeError(f"unknown method {name!r}; choose one of {', '.join(ADAPTERS)}")
+            reason = ADAPTERS[name].availability(self.clip)
             if reason:
                 raise RetimeError(reason)
-            if METHODS[name].point_axes == "ts" and self._kt and not self._merged:
+            if ADAPTERS[name].point_axes == "ts" and self._kt and not self._merged:
                 self._merge_keytimes(points)
             method = name
         elif kind == "params":
@@ -226,7 +226,7 @@ class Session:
             else:
                 raise RetimeError(f"duration {duration:g} s is outside {lo:.3g} .. {hi:.3g} s "
                                   f"(at most {MAX_SPEED:g} times faster or slower than the source)")
-        T = snap_duration(duration, self.fps)
+        T = output_duration(S, self.fps, duration=duration)  # the rule every door follows
         old = points[-1].t
         if scale_inner:
             for p in points[1:-1]:
@@ -253,7 +253,7 @@ class Session:
 
     def adapter(self, name):
         if name not in self.adapters:
-            self.adapters[name] = METHODS[name](self.clip)
+            self.adapters[name] = ADAPTERS[name](self.clip)
         return self.adapters[name]
 
     def solve(self, snap: Snapshot, cancelled=None, status=None, gone=None):

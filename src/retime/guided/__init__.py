@@ -7,9 +7,16 @@ preserves its natural timing), under keytime constraints.
 Entry point: :func:`retime.guided.guided_warp`.
 """
 
-from retime.guided.api import GuidedResult, guided_solve, guided_warp, root_frame_poses
-from retime.guided.features import FeatureWeights
-from retime.guided.postprocess import adaptive_smooth, moving_average
-
 __all__ = ["guided_warp", "guided_solve", "GuidedResult", "FeatureWeights", "root_frame_poses",
            "adaptive_smooth", "moving_average"]
+_LAZY = {"guided_warp": "api", "guided_solve": "api", "GuidedResult": "api", "root_frame_poses": "features",
+         "FeatureWeights": "features", "adaptive_smooth": "postprocess", "moving_average": "postprocess"}
+
+
+def __getattr__(name):
+    # imported on first use: the command line reads Settings' defaults without loading SciPy and numba
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

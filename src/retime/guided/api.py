@@ -2,7 +2,7 @@
 
 Pipeline (Hsu, da Silva, Popović 2007):
 
-1. Poses: joint positions in the root's frame, in metres (:func:`root_frame_poses`), low-passed
+1. Poses: joint positions in the root's frame, in metres (:func:`retime.guided.features.root_frame_poses`), low-passed
    with a box of ``prefilter`` seconds at the clip's own rate.
 2. Analysis grid: output frames at ``analysis_fps`` (30 Hz, as in the paper). Keytimes cut the
    clip into segments; a segment whose output is longer than its input (an expansion, or any
@@ -26,19 +26,16 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from retime.errors import RetimeError
-from retime.guided.features import FeatureWeights, compact_columns, lowpass, positions_in_root_frame
+from retime.guided.features import FeatureWeights, analysis_samples, pose_pair
 from retime.guided.heuristic import solve_heuristic, solve_upper_bound
+from retime.guided.method import SCORES  # noqa: F401 (the scores' names, where callers found them)
 from retime.guided.postprocess import moving_average
 from retime.guided.problem import SolveStats, WarpProblem, solve_exact
 from retime.guided.steady import steady_warp
-from retime.motion import Motion, forward_kinematics
-from retime.warp import TimingCurve, check_keytimes, keytime_warp, scale_warp, snap_duration
-
-#: local scores: "steady" (sub-frame steps, a convex penalty on speed changes) and "paper" (Hsu et al. eq. 2)
-SCORES = ("steady", "paper")
+from retime.motion import Motion
+from retime.warp import TimingCurve, check_keytimes, keytime_warp
 
 #: above this many DP states the exact solver first runs the heuristic for an upper bound and
 #: prunes the band with Lagrangian bounds (exact either way)
@@ -66,105 +63,12 @@ class GuidedResult:
     stats: SolveStats = field(default_factory=SolveStats)
 
 
-#: frames per forward-kinematics pass of :func:`root_frame_poses` (each frame is computed on its
-#: own, so the numbers are the same; a whole long clip at once held ~10 temporaries of its size)
-POSE_CHUNK_FRAMES = 4096
-#: pose columns per low-pass and spline in :func:`_analysis_samples` (columns are filtered and
-#: interpolated independently; one spline of every column held ~9 copies of the clip's poses)
-SPLINE_CHUNK_COLUMNS = 8
-
-
-def root_frame_poses(motion: Motion, root_height: float = 0.0, chunk_frames: int = POSE_CHUNK_FRAMES) -> np.ndarray:
-    """(F, J, 3) joint positions in the floating base's coordinate frame
-    (:func:`retime.motion.rig.floating_base`; dummy roots above it and props beside the body under
-    them are zero rows), in metres.
-
-    With ``root_height`` > 0 one more row (F, J+1, 3) holds the base's height above the ground
-    along the file's up axis (detected or given, :mod:`retime.motion.frame`; m) times that weight
-    in its y slot (x and z zero). Computed ``chunk_frames`` frames at a time.
-    """
-    from retime.motion.rig import base_and_props
-
-    base, props = base_and_props(motion.skeleton)
-    rows = motion.skeleton.n_joints + (1 if root_height > 0 else 0)
-    out = np.empty((motion.n_frames, rows, 3))
-    for f0 in range(0, motion.n_frames, int(chunk_frames)):
-        f1 = min(motion.n_frames, f0 + int(chunk_frames))
-        _root_frame_chunk(motion, f0, f1, base, props, root_height, out[f0:f1])
-    return out
-
-
-def _root_frame_chunk(motion, f0, f1, base, props, root_height, out):
-    """Frames f0..f1-1 of :func:`root_frame_poses`, written into ``out``."""
-    from retime.motion.frame import up_vector
-
-    sk = motion.skeleton
-    pos, ori = forward_kinematics(motion, motion.rotations[f0:f1], motion.translations[f0:f1])
-    J = sk.n_joints
-    out[:, :J] = positions_in_root_frame(pos, pos[:, base], ori[:, base]) * float(sk.meters_per_unit)
-    out[:, :base] = 0.0
-    out[:, props] = 0.0  # IK targets and markers beside the body are not its pose
-    if root_height > 0:
-        out[:, J] = 0.0
-        out[:, J, 1] = (pos[:, base] @ up_vector(sk.up)) * float(sk.meters_per_unit) * root_height
-
-
 def _check_reference(motion: Motion, reference: Motion):
     diff = motion.skeleton.same_structure(reference.skeleton)
     if diff:
         shown = ", ".join(diff[:8]) + (f" and {len(diff) - 8} more" if len(diff) > 8 else "")
         raise RetimeError(f"the reference's skeleton differs from the input's in joints {shown} "
                           "(missing on one side or with another parent); guided warping needs the same skeleton")
-
-
-def _pose_pair(motion, reference, root_height=0.0):
-    """Flattened poses of input and reference with the columns constant in both dropped."""
-    a = root_frame_poses(motion, root_height)
-    b = a if reference is motion else root_frame_poses(reference, root_height)
-    if reference is not motion:
-        order = [reference.skeleton.index(nm) for nm in motion.skeleton.names]
-        if root_height > 0:
-            order.append(len(order))
-        b = b[:, order]
-    x = a.reshape(a.shape[0], -1)
-    z = x if reference is motion else b.reshape(b.shape[0], -1)
-    return compact_columns(x, z)
-
-
-def _sampler(poses, fps):
-    """A function of times (s) giving the poses (F, D) at ``fps`` there (cubic spline)."""
-    F = poses.shape[0]
-    if F < 4:
-        def linear(times):
-            u = np.clip(np.asarray(times) * fps, 0, F - 1)
-            return np.stack([np.interp(u, np.arange(F), poses[:, c]) for c in range(poses.shape[1])], axis=1)
-        return linear
-    spline = CubicSpline(np.arange(F) / fps, poses, axis=0)
-    return lambda times: spline(np.clip(times, 0.0, (F - 1) / fps))
-
-
-def _analysis_samples(poses, fps, prefilter, times, chunk_columns=SPLINE_CHUNK_COLUMNS):
-    """Poses (F, D) at ``fps``, low-passed with a box of ``prefilter`` seconds, at each array of
-    ``times`` (s): a list of (len(t), D) arrays. A few columns at a time, each low-passed and
-    splined once."""
-    width = max(1, int(round(prefilter * fps)))
-    out = [np.empty((len(t), poses.shape[1])) for t in times]
-    for c0 in range(0, poses.shape[1], int(chunk_columns)):
-        c1 = min(poses.shape[1], c0 + int(chunk_columns))
-        sample = _sampler(lowpass(poses[:, c0:c1], width), fps)
-        for t, o in zip(times, out):
-            o[:, c0:c1] = sample(t)
-    return out
-
-
-def analysis_poses(motion: Motion, fps: float = 30.0, prefilter: float = 0.1, times=None,
-                   root_height: float = 1.0) -> np.ndarray:
-    """(frames, D) low-passed root-frame joint positions (m) at ``fps`` (or at ``times`` seconds)."""
-    x = root_frame_poses(motion, root_height)
-    x = x.reshape(x.shape[0], -1)
-    if times is None:
-        times = np.arange(int(math.floor(motion.duration * fps + 1e-9)) + 1) / fps
-    return _analysis_samples(x, motion.fps, prefilter, [np.asarray(times, dtype=float)])[0]
 
 
 def _segments(S, T, keytimes, A):
@@ -223,12 +127,13 @@ def _shortest(src, dst, pos, ups, A, s, T):
 
 
 def guided_solve(motion: Motion, reference: Motion | None = None, duration: float | None = None,
-                 scale: float | None = None, free: bool = False, keytimes=(), max_skip: int = 8,
-                 neighbors: int = 3, fast: bool = False, analysis_fps: float = 30.0,
-                 weights: FeatureWeights | None = None, prefilter: float = 0.1, upsample: int | None = None,
-                 smoothing: int = 5, knn: str = "exact", eps: float = 0.0, quiet: bool = True,
-                 score: str | None = None, steadiness: float | None = None, blend: float | None = None) -> GuidedResult:
+                 scale: float | None = None, free: bool = False, keytimes=(), quiet: bool = True,
+                 **options) -> GuidedResult:
     """Guided time warp of ``motion``; returns a :class:`GuidedResult` (``.curve`` is the timing curve).
+
+    A thin keyword wrapper over ``retime.method.solve("guided", ...)``: ``options`` are the fields of
+    :class:`retime.guided.method.Settings` (``max_skip``, ``neighbors``, ``fast``, ``score``, ``blend``,
+    ...), which also holds their defaults and meanings.
 
     motion: the input. reference: the motion whose timing to imitate (default: ``motion`` itself,
     which preserves its natural timing); it must have the same skeleton.
@@ -236,50 +141,31 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
     long), or chosen by the optimisation (the paper's unconstrained search, V8). With none of
     them the output lasts as long as the input.
     keytimes: [(source s, output s), ...] that the warp passes through exactly.
-    max_skip: skip limit s, the most grid frames one output frame may advance (the fastest
-    playback is ``max_skip / upsample`` times the original speed).
-    neighbors: k of the k-nearest-neighbour local score.
-    fast: coarse-to-fine heuristic instead of the exact search.
-    analysis_fps: rate of the search (30 Hz in the paper); the curve is in seconds whatever it is.
-    weights: :class:`FeatureWeights` of pose, velocity and acceleration.
-    prefilter: width of the box low-pass filter on joint positions (s).
-    upsample: grid frames per analysis frame (default: 1 for compressions with the input as its own
-    reference, enough for at least 2 per output frame otherwise, 4 for ``free`` with a reference).
-    smoothing: moving-average window of the warp, in output frames at the analysis rate (1 = none).
-    knn: "exact" or "approx" (KD-tree with relative error ``eps``).
-    score: "steady" (the paper's scores on sub-frame steps plus a convex penalty on speed changes,
-    :mod:`retime.guided.steady`: a steady motion plays at a steady speed) or "paper" (the paper's
-    mean distances on whole grid frames).
-    steadiness: weight of the steady objective's speed-change penalty.
-    blend: the reference's influence, 0 (the keytime spline warp,
-    :func:`retime.warp.keytime_warp` with ``smooth``) to 1 (the guided warp); in between the
-    source times are mixed linearly. None for any of these: :class:`retime.guided.method.Settings`.
+    quiet: no stage messages on stderr (``Settings.progress`` the other way round).
     """
-    t_start = time.perf_counter()
     from retime.guided.method import Settings
+    from retime.method import Request, settings_from, solve
 
-    score = Settings.score if score is None else str(score)
-    steadiness = Settings.steadiness if steadiness is None else float(steadiness)
-    blend = Settings.blend if blend is None else float(blend)
-    if score not in SCORES:
-        raise RetimeError(f"unknown score {score!r}: use one of {', '.join(SCORES)}")
-    if not 0.0 <= blend <= 1.0:
-        raise RetimeError(f"--blend must be between 0 and 1, got {blend:g}")
-    if not (steadiness >= 0 and math.isfinite(steadiness)):
-        raise RetimeError(f"the steadiness must be a finite number >= 0, got {steadiness:g}")
+    if free and (duration is not None or scale is not None):
+        raise RetimeError("give only one of duration, scale and free")
+    settings = settings_from(Settings, dict(options, reference=reference, free=bool(free), progress=not quiet))
+    return solve("guided", motion, Request(duration, scale, keytimes, settings)).detail
+
+
+def guided_result(motion: Motion, settings, request) -> GuidedResult:
+    """The guided warp of ``motion`` for a :class:`retime.method.Request` and guided's ``settings``
+    (:func:`retime.guided.method.solve` reports it; see the module docstring for the pipeline)."""
+    t_start = time.perf_counter()
+    st = settings
+    reference, free, fast, keytimes = st.reference, bool(st.free), bool(st.fast), request.keytimes
+    score, steadiness, blend = st.score, float(st.steadiness), float(st.blend)
+    s, neighbors, A = int(st.max_skip), int(st.neighbors), float(st.analysis_fps)
+    prefilter, upsample, smoothing, knn, eps = st.prefilter, st.upsample, st.smoothing, st.knn, st.eps
     if motion.n_frames < 2:
         raise RetimeError("a single frame has no timing to change")
-    s = int(max_skip)
-    if not 1 <= s <= 255:
-        raise RetimeError(f"--max-skip must be between 1 and 255, got {max_skip}")
-    if int(neighbors) < 1:
-        raise RetimeError(f"--neighbors must be at least 1, got {neighbors}")
-    A = float(analysis_fps)
-    if not A > 0:
-        raise RetimeError(f"the analysis rate must be positive, got {analysis_fps}")
-    if sum(v is not None and v is not False for v in (duration, scale)) + bool(free) > 1:
+    if free and (request.duration is not None or request.scale is not None):
         raise RetimeError("give only one of duration, scale and free")
-    weights = weights or FeatureWeights()
+    weights = st.weights or FeatureWeights()
     self_ref = reference is None or reference is motion
     reference = motion if self_ref else reference
     if not self_ref:
@@ -292,14 +178,9 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
             raise RetimeError("--fast (the coarse-to-fine search) needs a fixed output duration, and a free duration "
                               "is searched exactly; drop --fast or --free")
         T = None
-    elif scale is not None:
-        T = scale_warp(S, float(scale), motion.fps).duration
-    elif duration is not None:
-        if not duration > 0:
-            raise RetimeError(f"duration must be positive, got {duration}")
-        T = snap_duration(float(duration), motion.fps)
     else:
-        T = S
+        T = request.output_duration(motion)
+        T = S if T is None else T
     keys = check_keytimes(keytimes, S, T if T is not None else S) if keytimes else []
     if free:
         src, dst, pos = [0.0, S], [0.0, S], [0, max(1, int(round(S * A)))]
@@ -312,7 +193,7 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
             raise err
 
     # --- poses on the grid and at the analysis rate
-    x_src, z_src = _pose_pair(motion, reference, weights.root_height)
+    x_src, z_src = pose_pair(motion, reference, weights.root_height)
     grid, fixed = [], {}
     for q in range(len(src) - 1):
         N = max(1, int(round((src[q + 1] - src[q]) * A * ups[q])))
@@ -324,18 +205,18 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
     n = grid_times.size
     r_times = np.arange(int(math.floor(reference.duration * A + 1e-9)) + 1) / A
     if self_ref:  # one low-pass and spline gives both
-        x, z = _analysis_samples(x_src, motion.fps, prefilter, [grid_times, r_times])
+        x, z = analysis_samples(x_src, motion.fps, prefilter, [grid_times, r_times])
     else:
-        x, = _analysis_samples(x_src, motion.fps, prefilter, [grid_times])
-        z, = _analysis_samples(z_src, reference.fps, prefilter, [r_times])
+        x, = analysis_samples(x_src, motion.fps, prefilter, [grid_times])
+        z, = analysis_samples(z_src, reference.fps, prefilter, [r_times])
     del x_src, z_src  # the clip-rate poses: the biggest arrays so far
     if z.shape[0] < 3:
         raise RetimeError(f"the reference is {reference.duration:.3g} s long: at {A:g} Hz that is "
                           f"{z.shape[0]} frame(s), and the local score needs at least 3")
     m = None if free else pos[-1] + 1
-    problem = WarpProblem(x, z, A, m, fixed, s, int(neighbors), weights, knn, float(eps))
+    problem = WarpProblem(x, z, A, m, fixed, s, neighbors, weights, knn, float(eps))
     stats = SolveStats()
-    progress = _Progress(quiet)
+    progress = _Progress(not st.progress)
     if free:
         progress.say("scoring and searching (free duration)")
         sol, F, stats = solve_exact(problem, stats=stats)
@@ -396,7 +277,7 @@ def guided_solve(motion: Motion, reference: Motion | None = None, duration: floa
         curve = blended(spline, curve, blend, motion.fps, [t for _, t in keys])
     stats.extra["total_s"] = time.perf_counter() - t_start
     return GuidedResult(curve, raw, objective, exact, frames, out_t, src_t, n, len(frames),
-                        z.shape[0], s, int(neighbors), A, ups, stats)
+                        z.shape[0], s, neighbors, A, ups, stats)
 
 
 def blended(spline: TimingCurve, guided: TimingCurve, weight: float, fps: float, keys_out=()) -> TimingCurve:
@@ -413,8 +294,7 @@ def blended(spline: TimingCurve, guided: TimingCurve, weight: float, fps: float,
 
 
 def guided_warp(motion: Motion, reference: Motion | None = None, duration: float | None = None,
-                scale: float | None = None, free: bool = False, keytimes=(), max_skip: int = 8,
-                neighbors: int = 3, fast: bool = False, analysis_fps: float = 30.0, **options) -> TimingCurve:
+                scale: float | None = None, free: bool = False, keytimes=(), **options) -> TimingCurve:
     """The guided timing curve of ``motion`` (output seconds -> source seconds).
 
     Same arguments as :func:`guided_solve` (which also returns the objective, the chosen frames
@@ -428,8 +308,7 @@ def guided_warp(motion: Motion, reference: Motion | None = None, duration: float
         curve = guided_warp(jump, duration=0.6 * jump.duration)  # keeps the flight's speed
         shorter = apply_timing(jump, curve)
     """
-    return guided_solve(motion, reference, duration, scale, free, keytimes, max_skip, neighbors, fast,
-                        analysis_fps, **options).curve
+    return guided_solve(motion, reference, duration, scale, free, keytimes, **options).curve
 
 
 class _Progress:

@@ -26,6 +26,7 @@ from numba import njit, prange
 
 from retime.errors import RetimeError
 from retime.guided._jit import compiled
+from retime.guided.limits import BACK_POINTER, MAX_SKIP_LIMIT
 
 INF = np.inf
 
@@ -286,8 +287,8 @@ class Solution:
 def _check_table(F, n, s):
     if F.ndim != 3 or F.shape[:2] != (n, s) or F.shape[2] % 8 or F.shape[2] < s:
         raise ValueError(f"score table shape {F.shape} is not (n, s, 8 * ceil(s / 8))")
-    if s > 255:
-        raise RetimeError(f"the skip limit must be at most 255 (got {s})")
+    if s > MAX_SKIP_LIMIT:
+        raise RetimeError(f"the skip limit must be at most {MAX_SKIP_LIMIT} (got {s}): back-pointers are uint8")
 
 
 def solve_fixed(F, m, fixed=None, band=None, parallel=None) -> Solution:
@@ -310,7 +311,7 @@ def solve_fixed(F, m, fixed=None, band=None, parallel=None) -> Solution:
     # back-pointers of S_{p+1} (vertices (j, j+e), j at position p) at offs[p+1]
     offs = np.zeros(m + 1, dtype=np.int64)
     offs[2:] = np.cumsum(widths[:-1] * S8)
-    bp = np.zeros(int(offs[-1]), dtype=np.uint8)
+    bp = np.zeros(int(offs[-1]), dtype=BACK_POINTER)
     if parallel is None:
         # one barrier per output frame: on a busy 2-core machine a descheduled thread stalls every
         # step, so the search runs on one thread unless asked otherwise
@@ -342,7 +343,7 @@ _DP_SIG = numba.float64[::1](
 def _dp_free(F, s):
     n = F.shape[0]
     g = np.full((n, s), INF)
-    bp = np.zeros((n, s), dtype=np.uint8)
+    bp = np.zeros((n, s), dtype=BACK_POINTER)
     for k in range(1, n):
         for e in range(1, s + 1):
             j = k - e

@@ -36,12 +36,13 @@ frames (see :mod:`retime.guided.score`); nothing here ever has to build the
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
 
 from retime.errors import RetimeError
+from retime.motion import Motion, forward_kinematics
 
 
 @dataclass(frozen=True)
@@ -80,6 +81,8 @@ def lowpass(values: np.ndarray, width: int) -> np.ndarray:
     width = int(width)
     if width <= 1 or values.shape[0] < 2:
         return values.copy()
+    from scipy.ndimage import uniform_filter1d  # here: the command line reads FeatureWeights without SciPy
+
     return uniform_filter1d(values, size=width, axis=0, mode="nearest")
 
 
@@ -160,3 +163,99 @@ def triple_features(x: np.ndarray, i, j, k, coeffs: tuple[float, float, float]) 
     a, b, c = coeffs
     xi, xj, xk = x[np.asarray(i)], x[np.asarray(j)], x[np.asarray(k)]
     return np.concatenate([a * xj, b * (xk - xi), c * (xk - 2 * xj + xi)], axis=-1)
+
+
+# ---------------------------------------------------------------- poses (the features' input)
+#: frames per forward-kinematics pass of :func:`root_frame_poses` (each frame is computed on its
+#: own, so the numbers are the same; a whole long clip at once held ~10 temporaries of its size)
+POSE_CHUNK_FRAMES = 4096
+#: pose columns per low-pass and spline in :func:`analysis_samples` (columns are filtered and
+#: interpolated independently; one spline of every column held ~9 copies of the clip's poses)
+SPLINE_CHUNK_COLUMNS = 8
+
+
+def root_frame_poses(motion: Motion, root_height: float = 0.0, chunk_frames: int = POSE_CHUNK_FRAMES) -> np.ndarray:
+    """(F, J, 3) joint positions in the floating base's coordinate frame
+    (:func:`retime.motion.rig.floating_base`; dummy roots above it and props beside the body under
+    them are zero rows), in metres.
+
+    With ``root_height`` > 0 one more row (F, J+1, 3) holds the base's height above the ground
+    along the file's up axis (detected or given, :mod:`retime.motion.frame`; m) times that weight
+    in its y slot (x and z zero). Computed ``chunk_frames`` frames at a time.
+    """
+    from retime.motion.rig import base_and_props
+
+    base, props = base_and_props(motion.skeleton)
+    rows = motion.skeleton.n_joints + (1 if root_height > 0 else 0)
+    out = np.empty((motion.n_frames, rows, 3))
+    for f0 in range(0, motion.n_frames, int(chunk_frames)):
+        f1 = min(motion.n_frames, f0 + int(chunk_frames))
+        _root_frame_chunk(motion, f0, f1, base, props, root_height, out[f0:f1])
+    return out
+
+
+def _root_frame_chunk(motion, f0, f1, base, props, root_height, out):
+    """Frames f0..f1-1 of :func:`root_frame_poses`, written into ``out``."""
+    from retime.motion.frame import up_vector
+
+    sk = motion.skeleton
+    pos, ori = forward_kinematics(motion, motion.rotations[f0:f1], motion.translations[f0:f1])
+    J = sk.n_joints
+    out[:, :J] = positions_in_root_frame(pos, pos[:, base], ori[:, base]) * float(sk.meters_per_unit)
+    out[:, :base] = 0.0
+    out[:, props] = 0.0  # IK targets and markers beside the body are not its pose
+    if root_height > 0:
+        out[:, J] = 0.0
+        out[:, J, 1] = (pos[:, base] @ up_vector(sk.up)) * float(sk.meters_per_unit) * root_height
+
+
+def pose_pair(motion, reference, root_height=0.0):
+    """Flattened poses of input and reference with the columns constant in both dropped."""
+    a = root_frame_poses(motion, root_height)
+    b = a if reference is motion else root_frame_poses(reference, root_height)
+    if reference is not motion:
+        order = [reference.skeleton.index(nm) for nm in motion.skeleton.names]
+        if root_height > 0:
+            order.append(len(order))
+        b = b[:, order]
+    x = a.reshape(a.shape[0], -1)
+    z = x if reference is motion else b.reshape(b.shape[0], -1)
+    return compact_columns(x, z)
+
+
+def _sampler(poses, fps):
+    """A function of times (s) giving the poses (F, D) at ``fps`` there (cubic spline)."""
+    F = poses.shape[0]
+    if F < 4:
+        def linear(times):
+            u = np.clip(np.asarray(times) * fps, 0, F - 1)
+            return np.stack([np.interp(u, np.arange(F), poses[:, c]) for c in range(poses.shape[1])], axis=1)
+        return linear
+    from scipy.interpolate import CubicSpline  # here: the command line reads FeatureWeights without SciPy
+
+    spline = CubicSpline(np.arange(F) / fps, poses, axis=0)
+    return lambda times: spline(np.clip(times, 0.0, (F - 1) / fps))
+
+
+def analysis_samples(poses, fps, prefilter, times, chunk_columns=SPLINE_CHUNK_COLUMNS):
+    """Poses (F, D) at ``fps``, low-passed with a box of ``prefilter`` seconds, at each array of
+    ``times`` (s): a list of (len(t), D) arrays. A few columns at a time, each low-passed and
+    splined once."""
+    width = max(1, int(round(prefilter * fps)))
+    out = [np.empty((len(t), poses.shape[1])) for t in times]
+    for c0 in range(0, poses.shape[1], int(chunk_columns)):
+        c1 = min(poses.shape[1], c0 + int(chunk_columns))
+        sample = _sampler(lowpass(poses[:, c0:c1], width), fps)
+        for t, o in zip(times, out):
+            o[:, c0:c1] = sample(t)
+    return out
+
+
+def analysis_poses(motion: Motion, fps: float = 30.0, prefilter: float = 0.1, times=None,
+                   root_height: float = 1.0) -> np.ndarray:
+    """(frames, D) low-passed root-frame joint positions (m) at ``fps`` (or at ``times`` seconds)."""
+    x = root_frame_poses(motion, root_height)
+    x = x.reshape(x.shape[0], -1)
+    if times is None:
+        times = np.arange(int(math.floor(motion.duration * fps + 1e-9)) + 1) / fps
+    return analysis_samples(x, motion.fps, prefilter, [np.asarray(times, dtype=float)])[0]

@@ -27,9 +27,9 @@ class WarpProblem:
     z: np.ndarray  # (r, D) reference poses at the analysis rate, low-passed
     fps: float  # output frames per second (the analysis rate)
     m: int | None  # output frames; None = free duration
-    fixed: dict = field(default_factory=dict)  # output position -> grid frame (keytimes)
-    s: int = 8  # skip limit (grid frames per output step)
-    k: int = 3  # nearest neighbours
+    fixed: dict  # output position -> grid frame (keytimes)
+    s: int  # skip limit (grid frames per output step; the default is guided.method.Settings')
+    k: int  # nearest neighbours
     weights: FeatureWeights = field(default_factory=FeatureWeights)
     knn: str = "exact"  # or "approx"
     eps: float = 0.0  # relative error bound of the approximate search

@@ -54,6 +54,7 @@ from ..warp import TimingCurve, snap_duration
 from .constants import DEFAULT_SMOOTHING, MAX_GRAVITY, STANDARD_GRAVITY, G
 from .fastest import fastest_timing
 from .globalstart import global_start, soften
+from .method import Settings, check_masses, file_gravity
 from .objective import BakedObjective, bake, target_torques
 from .plausibility import check_source
 from ..warp import check_keytimes
@@ -78,6 +79,24 @@ class PhysicsResult:
     terms: object = None  # the DynamicsTerms (body, torque limits, ...)
 
 
+class LiveSession(RetimingSession):
+    """An interactive retiming (:func:`.method.session`), with what it was computed from
+    (``shared``, a :class:`.method.Shared`) and where its current timing is feasible."""
+
+    def __init__(self, problem, shared, optimizer, fps):
+        super().__init__(problem, optimizer=optimizer, fps=fps)
+        self.shared = shared
+
+    def feasibility(self, fps):
+        """Per output frame at ``fps``: :func:`.feasibility.spline_feasibility` of the current spline."""
+        from .feasibility import spline_feasibility
+
+        return spline_feasibility(self.spline, self.shared.dynamics, self.shared.regions, fps)
+
+    def is_locked(self, index) -> bool:
+        return index in self.spline.locks
+
+
 def _changed(gravity, mass_factors, friction, torque_scale):
     g = np.asarray(gravity, dtype=float)
     return (not np.allclose(g, STANDARD_GRAVITY) or bool(mass_factors) or friction is not None
@@ -85,24 +104,26 @@ def _changed(gravity, mass_factors, friction, torque_scale):
 
 
 
-def prepare(motion, gravity=STANDARD_GRAVITY, mass_factors=None, objective="match", body=None, contacts=None,
-            friction=None, torque_scale=1.0, alpha=10.0, beta=0.1, samples_per_frame=4, region_options=None,
-            terms=None, progress=False, timings=None, gamma=0.03, metric="residual", excess=True,
-            w_min=0.02, w_max=12.0, penalty="l1", smoothing=DEFAULT_SMOOTHING, delta=1e-3, cancel=None):
-    """Dynamics, regions and the baked objective: everything but the spline. ``cancel``: asked
-    between frames of the regions; True stops with :class:`.regions.Cancelled`."""
+def prepare(motion, gravity=STANDARD_GRAVITY, settings=None, *, terms=None, region_options=None, timings=None,
+            cancel=None):
+    """Dynamics, regions and the baked objective: everything but the spline. ``gravity``: y-up
+    (m/s^2, the conformed motion's world; :func:`conformed_gravity` turns the file's into it);
+    ``settings``: a :class:`.method.Settings` (None: its defaults; its gravity fields are not read
+    here). ``cancel``: asked between frames of the regions; True stops with :class:`.regions.Cancelled`."""
+    s = Settings() if settings is None else settings
     timings = {} if timings is None else timings
-    terms, pd0, pd, regions = prepare_regions(motion, gravity, mass_factors, body, contacts, friction, torque_scale,
-                                              region_options, terms, progress, timings, smoothing, cancel)
+    terms, pd0, pd, regions = prepare_regions(motion, gravity, s.mass_factors or None, s.body, s.contacts, s.friction,
+                                              s.torque_scale, region_options, terms, s.progress, timings, s.smoothing,
+                                              cancel)
     opts = regions.options
     t0 = time.perf_counter()
     tau0 = np.asarray(pd0.b) + np.asarray(pd0.c) - pd0.N.forces(regions.lam0)
-    target = tau0 if objective == "match" else target_torques(objective, pd0, regions)
+    target = tau0 if s.objective == "match" else target_torques(s.objective, pd0, regions)
     act = ~((np.asarray(pd.tau_lo) == 0) & (np.asarray(pd.tau_hi) == 0))
     tau_scale = float(np.sqrt(np.mean(np.sum(tau0[:, act] ** 2, axis=1)))) or 1.0
-    obj = bake(pd, regions, target, alpha=alpha, beta=beta, tau_scale=tau_scale,
-               samples_per_frame=samples_per_frame, metric=metric, excess=excess, gamma=gamma,
-               v_range=(w_min ** 2, min(opts.v_max, w_max ** 2)), penalty=penalty, delta=delta)
+    obj = bake(pd, regions, target, alpha=s.alpha, beta=s.beta, tau_scale=tau_scale,
+               samples_per_frame=s.samples_per_frame, metric=s.metric, excess=s.excess, gamma=s.gamma,
+               v_range=(s.w_min ** 2, min(opts.v_max, s.w_max ** 2)), penalty=s.penalty, delta=s.delta)
     timings["bake"] = time.perf_counter() - t0
     return terms, pd, regions, obj
 
@@ -134,13 +155,19 @@ def prepare_regions(motion, gravity=STANDARD_GRAVITY, mass_factors=None, body=No
     return terms, pd0, pd, regions
 
 
-def make_problem(obj, source_duration, duration=None, keytimes=(), knot_spacing=0.05, w_min=0.02, w_max=12.0,
-                 start="global", timings=None):
+def make_problem(obj, source_duration, duration=None, keytimes=(), knot_spacing=None, w_min=None, w_max=None,
+                 start=None, timings=None):
     """The spline problem: knots every ``knot_spacing`` (output time, uniform), the duration (None:
-    free) and keytimes. ``start="global"`` (no keytimes) starts from the grid optimum
+    free) and keytimes; None for ``knot_spacing``, ``w_min``, ``w_max``, ``start``: :class:`.method.Settings`'.
+    ``start="global"`` (no keytimes) starts from the grid optimum
     (:mod:`.globalstart`) and softens the frames it gives up in the problem's objective, for this and
     every later re-convergence of a session built on it; ``"uniform"`` is the paper's start; keytimes
     start from their piecewise-linear timing."""
+    d = Settings()
+    knot_spacing = d.knot_spacing if knot_spacing is None else knot_spacing
+    w_min = d.w_min if w_min is None else w_min
+    w_max = d.w_max if w_max is None else w_max
+    start = d.start if start is None else start
     S = float(source_duration)
     kt = check_keytimes(keytimes, S, duration)
     n_spans = max(4, int(np.ceil(S / knot_spacing)))
@@ -194,50 +221,47 @@ def conformed_gravity(motion, gravity=None) -> np.ndarray:
     return R @ g
 
 
-def physics_warp(motion, duration=None, scale=None, gravity=None, mass_factors=None, objective="match",
-                 keytimes=(), body=None, contacts=None, friction=None, torque_scale=1.0, alpha=10.0, beta=0.1,
-                 method=None, knot_spacing=0.05, samples_per_frame=4, region_options=None, terms=None,
-                 max_iter=3000, progress=False, gamma=0.03, metric="residual", excess=True,
-                 penalty="l1", smoothing=DEFAULT_SMOOTHING, delta=1e-3, start="global") -> PhysicsResult:
-    """Retime ``motion`` physically; see the module docstring. ``duration`` in seconds (or ``scale``
-    times the source duration; neither: free duration). ``keytimes``: [(source s, output s)].
-    ``mass_factors``: {segment name: factor}. ``gravity`` (m/s^2) is in the file's own axes (None:
-    9.81 down its detected up axis); :func:`prepare` takes it in the y-up world of the conformed
-    motion (:func:`conformed_gravity`)."""
-    if objective not in ("match", "minimize"):
-        raise RetimeError(f"unknown objective {objective!r} (use 'match' or 'minimize')")
-    if method is None:
-        from .method import Settings
+def physics_warp(motion, duration=None, scale=None, keytimes=(), *, terms=None, region_options=None,
+                 **options) -> PhysicsResult:
+    """Retime ``motion`` physically; see the module docstring. A thin keyword wrapper over
+    ``retime.method.solve("physics", ...)``: ``duration`` in seconds (or ``scale`` times the source
+    duration; neither: free duration), ``keytimes`` [(source s, output s)], and ``options``, the
+    fields of :class:`.method.Settings` (``gravity`` in m/s^2 in the file's own axes, or
+    ``gravity_scale``; ``mass_factors`` {segment name: factor}; ``objective``, ``alpha``, ...), which
+    also holds their defaults. ``terms``: this motion's dynamics, to reuse them."""
+    from ..method import Request, settings_from
+    from .method import solve
 
-        method = Settings.optimizer
-    if start not in ("global", "uniform"):
-        raise RetimeError(f"unknown start {start!r} (use 'global' or 'uniform')")
+    settings = settings_from(Settings, options)
+    return solve(motion, Request(duration, scale, keytimes, settings), terms=terms,
+                 region_options=region_options).detail
+
+
+def physics_result(motion, settings, request, terms=None, region_options=None) -> PhysicsResult:
+    """The physics retiming of ``motion`` for a request and physics' ``settings`` (what
+    :func:`.method.solve` reports)."""
+    s = settings
     fps = float(motion.fps)
     S = motion.duration
-    if scale is not None:
-        if duration is not None:
-            raise RetimeError("give a duration or a scale, not both")
-        duration = S * float(scale)
-    if duration is not None:
-        if not duration > 0:
-            raise RetimeError(f"duration must be positive, got {duration}")
-        duration = snap_duration(duration, fps)
+    duration = request.output_duration(motion)  # the rule every door follows (None: free)
+    keytimes = request.keytimes
+    progress = s.progress
+    mass_factors = check_masses(motion, s.mass_factors)
     check_keytimes(keytimes, S, duration)  # before the dynamics: fail fast
     from ..jit import compile_watch, stderr_if
 
     with compile_watch(stderr_if(progress)) as jit:
         timings = {}
-        file_gravity = -G * up_vector(motion.skeleton.up) if gravity is None else np.asarray(gravity, dtype=float)
-        gravity = conformed_gravity(motion, gravity)
-        terms, pd, regions, obj = prepare(motion, gravity, mass_factors, objective, body, contacts, friction,
-                                          torque_scale, alpha, beta, samples_per_frame, region_options, terms,
-                                          progress, timings, gamma=gamma, metric=metric, excess=excess,
-                                          penalty=penalty, smoothing=smoothing, delta=delta)
+        gravity = file_gravity(motion, s)
+        file_g = -G * up_vector(motion.skeleton.up) if gravity is None else np.asarray(gravity, dtype=float)
+        terms, pd, regions, obj = prepare(motion, conformed_gravity(motion, gravity), s, terms=terms,
+                                          region_options=region_options, timings=timings)
         source = check_source(motion, terms, regions)  # said before the retiming, by the caller
-        problem = make_problem(obj, S, duration, keytimes, knot_spacing, start=start, timings=timings)
-        session = RetimingSession(problem, method=method, fps=fps)
+        problem = make_problem(obj, S, duration, keytimes, s.knot_spacing, s.w_min, s.w_max, start=s.start,
+                               timings=timings)
+        session = RetimingSession(problem, optimizer=s.optimizer, fps=fps)
         t0 = time.perf_counter()
-        info = session.reconverge(max_iter=max_iter, tol=1e-9)
+        info = session.reconverge(max_iter=s.max_iter, tol=1e-9)
         timings["optimize"] = time.perf_counter() - t0
         spline = session.spline
         if spline.free and not problem.keytimes:
@@ -248,7 +272,7 @@ def physics_warp(motion, duration=None, scale=None, gravity=None, mass_factors=N
         curve = spline.timing_curve(fps)
         fastest = fastest_timing(regions)  # the least physical duration, for the report
         report = build_report(spline, pd, regions, fps, info=info,
-                              extra={"objective_kind": objective, "gravity": [float(x) for x in file_gravity],
+                              extra={"objective_kind": s.objective, "gravity": [float(x) for x in file_g],
                                      "up": motion.skeleton.up, "meters_per_unit": float(motion.skeleton.meters_per_unit),
                                      "conform_notes": [n for n in getattr(terms, "conform_notes", [])
                                                        if n not in getattr(terms, "conform_warnings", [])],

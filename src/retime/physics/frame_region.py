@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -23,8 +23,25 @@ from .highs_lp import FrameLP, HighsPool, solve_dual_simplex
 from .polygon import ccw_order, clip_halfplanes, closest_point, dedupe
 from .simplex import INF, phase2, walk
 
-if TYPE_CHECKING:
-    from .regions import RegionOptions
+
+@dataclass
+class RegionOptions:
+    """How feasible regions are computed (:mod:`.regions`). Units: u = p'' in 1/s, v = p'^2 (dimensionless)."""
+
+    u_max: float = 60.0
+    v_max: float = 64.0  # up to 8x speed (still frames, which any speed suits)
+    solver: str = "parametric"  # "parametric" (HiGHS + shadow-vertex walk) or "highs" (refinement)
+    tol: float = 1e-3  # "highs": polygon accuracy in the (p'', p'^2) plane
+    relax: bool = True  # False: exact regions (an empty one is an error)
+    allowance: float = 0.05  # residual root wrench every frame may use, fraction of body weight
+    relax_pad: float = 0.01  # fraction of body weight added around every residual budget
+    noise: bool = True  # widen the root rows by the capture-noise band b_noise p'^2 (PathDynamics.b_noise)
+    max_relaxation: float = 0.05  # frames needing more extra relaxation are flagged implausible
+    moment_arm: float = 1.0  # metres: a root moment of W * moment_arm counts like a force of W
+    actuated_slack_cost: float = 10.0
+    body_weight: float | None = None  # newtons; default: estimated from the gravity term
+    center: tuple = (0.0, 1.0)  # the timing whose contact forces anchor the force model (sec. 3.4)
+    workers: int | None = None  # processes for many frames (default: all cores, at most 2)
 
 
 @dataclass
@@ -261,7 +278,7 @@ def _trace(lp, opts, x0):
     """Polygon vertices (k, 2 + n_lam) of an LP whose first solve gave x0; (X, pivots)."""
     X = None
     piv = 0
-    if opts.method == "parametric":
+    if opts.solver == "parametric":
         basic, up = lp.basis()
         zl, zu = lp.bounds()
         if len(basic) == lp.m:
@@ -287,7 +304,7 @@ def _polygon(a, b, c, N, lo, hi, rho, act, rows, other, opts, Kall, eps, pool, l
         before = lp.n_solves
         P = L = None
         X = None
-        if opts.method == "parametric" and lp.center_state is not None:
+        if opts.solver == "parametric" and lp.center_state is not None:
             # start from the centre LP's basis: phase 2 to "max v" and the walk, all without HiGHS
             basic, zval = lp.center_state
             zl, zu = lp.bounds()

@@ -45,7 +45,7 @@ from .newton import OBJECTIVE_FLOOR
 from .objective import BakedObjective, ObjectiveWorkspace, evaluate
 from .spline import TimingSpline
 
-METHODS = ("newton", "lbfgs", "lbfgsb", "gd", "slsqp")
+OPTIMIZERS = ("newton", "lbfgs", "lbfgsb", "gd", "slsqp")
 KKT_TOL = 1e-3  # converged: the Newton test met and kkt_residual below this (the relative objective change a
 # relative change of one speed coefficient would still bring; a float32 copy of a clip then retimes
 # within 0.1 source frame of the original, benchmarks/physics_converge.py)
@@ -340,8 +340,8 @@ def polish(problem: Problem, w, eq_tol=1e-6, max_iter=300, max_seconds=None):
 
 
 def _solve(problem, w0, method, max_iter, tol, eq_tol, max_seconds):
-    if method not in METHODS:
-        raise RetimeError(f"unknown optimizer {method!r} (use {', '.join(METHODS)})")
+    if method not in OPTIMIZERS:
+        raise RetimeError(f"unknown optimizer {method!r} (use {', '.join(OPTIMIZERS)})")
     t0 = time.perf_counter()
     problem.n_evals = 0
     bounds = problem.bounds()
@@ -436,13 +436,13 @@ class RetimingSession:
     Control points are the spline's (output time, source time) pairs (:meth:`control_points`);
     index 0 and the last one are the ends (source 0 and S) and cannot move vertically."""
 
-    def __init__(self, problem: Problem, method=None, fps=None):
-        if method is None:  # the physics method's default (the editor's sessions, physics_warp's own)
+    def __init__(self, problem: Problem, optimizer=None, fps=None):
+        if optimizer is None:  # the physics method's default (the editor's sessions, physics_warp's own)
             from .method import Settings
 
-            method = Settings.optimizer
+            optimizer = Settings.optimizer
         self.problem = problem
-        self.method = method
+        self.optimizer = optimizer  # one of OPTIMIZERS
         self.fps = fps
         self.history: list[SolveInfo] = []
 
@@ -549,12 +549,12 @@ class RetimingSession:
         (``benchmarks/physics.py`` measures both on 16_16 at half duration). Otherwise the session's
         method to the end: with ``"newton"``, L-BFGS to ``tol`` (default 1e-9: Newton's polish from a
         loose L-BFGS stop crawls through hundreds of small steps) and the Newton polish."""
-        method = "lbfgs" if quick and self.method == "newton" else self.method
+        method = "lbfgs" if quick and self.optimizer == "newton" else self.optimizer
         if tol is None:
             tol = 1e-9 if method == "newton" else 1e-5
         w, info = solve(self.problem, self.spline.w, method=method, max_iter=max_iter, tol=tol,
                         max_seconds=max_seconds)
-        if method != self.method:  # the first stage of the session's method: not its answer yet
+        if method != self.optimizer:  # the first stage of the session's method: not its answer yet
             info.converged = False
             info.message = f"quick (first stage only): {info.message}"
         self.spline.w = w

@@ -16,14 +16,14 @@ computed per frame (:mod:`.frame_region`):
   :mod:`.highs_lp`), one ``Highs`` model per frame that keeps its basis; only the cost direction changes. Two ways of
   tracing the polygon:
 
-  - ``method="parametric"`` (default): HiGHS solves the frame's centre LP (least contact force at the
+  - ``solver="parametric"`` (default): HiGHS solves the frame's centre LP (least contact force at the
     original timing, sec. 3.4) -- the one HiGHS solve per frame; with its basis, a compiled phase-2
     primal simplex (:mod:`.simplex`) reaches the vertex of largest p'^2, and a parametric (shadow-vertex) simplex rotates
     the cost direction through 360 degrees from there, pivoting exactly at the angles where the basis
     stops being optimal. Every non-degenerate pivot lands on the next vertex of the projection, so the
     polygon is exact (to floating point). On numerical trouble (the walk stops short) it falls
     back to the refinement below.
-  - ``method="highs"``: adaptive refinement with HiGHS alone (Fig. 4): maximize in the four axis
+  - ``solver="highs"``: adaptive refinement with HiGHS alone (Fig. 4): maximize in the four axis
     directions, then along the outward normal of every edge found so far; an edge is final when the
     LP cannot push past it by more than ``tol``, so the polygon is exact to ``tol`` (it always lies
     inside the true region).
@@ -84,30 +84,10 @@ import numpy as np
 
 from ..errors import RetimeError
 from .constants import G
-from .frame_region import FrameRegion, frame_region, row_weights, source_fit, unactuated_rows
+from .frame_region import FrameRegion, RegionOptions, frame_region, row_weights, source_fit, unactuated_rows
 from .highs_lp import HighsPool
 from .polygon import polygon_distance, polygon_distances
 
-
-
-@dataclass
-class RegionOptions:
-    """How feasible regions are computed. Units: u = p'' in 1/s, v = p'^2 (dimensionless)."""
-
-    u_max: float = 60.0
-    v_max: float = 64.0  # up to 8x speed (still frames, which any speed suits)
-    method: str = "parametric"  # "parametric" (HiGHS + shadow-vertex walk) or "highs" (refinement)
-    tol: float = 1e-3  # "highs": polygon accuracy in the (p'', p'^2) plane
-    relax: bool = True  # False: exact regions (an empty one is an error)
-    allowance: float = 0.05  # residual root wrench every frame may use, fraction of body weight
-    relax_pad: float = 0.01  # fraction of body weight added around every residual budget
-    noise: bool = True  # widen the root rows by the capture-noise band b_noise p'^2 (PathDynamics.b_noise)
-    max_relaxation: float = 0.05  # frames needing more extra relaxation are flagged implausible
-    moment_arm: float = 1.0  # metres: a root moment of W * moment_arm counts like a force of W
-    actuated_slack_cost: float = 10.0
-    body_weight: float | None = None  # newtons; default: estimated from the gravity term
-    center: tuple = (0.0, 1.0)  # the timing whose contact forces anchor the force model (sec. 3.4)
-    workers: int | None = None  # processes for many frames (default: all cores, at most 2)
 
 
 @dataclass
@@ -170,15 +150,15 @@ class RegionSet:
 
 
 def estimate_body_weight(pd) -> float:
-    """Body weight at standard gravity: total mass x 9.81 when known, else |root gravity force|."""
-    m = getattr(pd, "total_mass", None) or getattr(pd, "mass", None)
-    if m:
-        return float(m) * G
+    """Body weight at standard gravity: total mass x 9.81 when known, else |root gravity force| (under
+    ``pd.gravity``, y-up, m/s^2: the dynamics' own, scaled back to standard)."""
+    if pd.total_mass:
+        return float(pd.total_mass) * G
     n_root = unactuated_rows(pd)
-    g = getattr(pd, "gravity", None)
+    g = np.asarray(pd.gravity, dtype=float)
     if n_root >= 3:
         f = float(np.median(np.linalg.norm(np.asarray(pd.c)[:, :3], axis=1)))
-        if g is not None and np.linalg.norm(g) > 0:
+        if np.linalg.norm(g) > 0:
             f *= G / float(np.linalg.norm(g))
         if f > 0:
             return f
@@ -193,8 +173,7 @@ def base_bounds(pd, opts, bw, n_root):
     lo = np.asarray(pd.tau_lo, dtype=float).copy()
     hi = np.asarray(pd.tau_hi, dtype=float).copy()
     if opts.relax and opts.allowance > 0 and n_root:
-        g = getattr(pd, "gravity", None)
-        gscale = 1.0 if g is None else float(np.linalg.norm(g)) / G
+        gscale = float(np.linalg.norm(pd.gravity)) / G  # the dynamics' gravity (y-up), against standard
         w = row_weights(n_root, len(lo), bw, opts)[:n_root]
         lo[:n_root] -= opts.allowance * gscale * w
         hi[:n_root] += opts.allowance * gscale * w
@@ -245,7 +224,7 @@ class RegionJob:
             rlo, rhi = self.reference_bounds
             fit = source_fit(np.asarray(ref.a[i], float), np.asarray(ref.b[i], float), np.asarray(ref.c[i], float),
                              np.asarray(ref.N[i], float), rlo, rhi, opts, bw, n_root, pool)
-        noise = getattr(pd, "b_noise", None)
+        noise = pd.b_noise
         r = frame_region(pd.a[i], pd.b[i], pd.c[i], pd.N[i], lo, hi, opts, bw, n_root,
                          budget=None if fit is None else fit.budget, noise=None if noise is None else noise[i],
                          pool=pool)
@@ -317,8 +296,8 @@ def compute_regions(pd, options: RegionOptions | None = None, reference=None, fr
     import time
 
     opts = options or RegionOptions()
-    if opts.method not in ("parametric", "highs"):
-        raise RetimeError(f"unknown region method {opts.method!r} (use 'parametric' or 'highs')")
+    if opts.solver not in ("parametric", "highs"):
+        raise RetimeError(f"unknown region solver {opts.solver!r} (use 'parametric' or 'highs')")
     t0 = time.perf_counter()
     idx = np.arange(len(pd.times)) if frames is None else np.asarray(frames)
     n = len(idx)
@@ -388,7 +367,7 @@ def _region_set(pd, idx, packs: list[dict], opts, bw) -> RegionSet:
 
     offsets = np.zeros(n + 1, dtype=np.int64)
     offsets[1:] = np.cumsum(joined("n_verts"))
-    contact = getattr(pd, "contact", None)
+    contact = pd.contact
     relaxation = joined("relaxation")
     return RegionSet(
         times=np.asarray(pd.times, dtype=float)[idx],

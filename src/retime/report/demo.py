@@ -17,10 +17,10 @@ from typing import Any
 import numpy as np
 
 from retime.errors import RetimeError
+from retime.method import METHODS  # the method registry
 from retime.phases import interval_speed, longest_flight
 
 DEFAULT_CLIP = "16_06.amc"
-METHODS = ("linear", "guided", "physics")
 
 
 @dataclass
@@ -137,7 +137,7 @@ def run_demo(
     out_dir: str | os.PathLike = "retime-demo",
     clip: str = DEFAULT_CLIP,
     scale: float = 0.5,
-    methods=METHODS,
+    methods=tuple(METHODS),  # every registered method
     fps: float = 30.0,
     panel_size: tuple[int, int] = (480, 400),
     video: bool = True,
@@ -151,7 +151,7 @@ def run_demo(
     from retime.motion import load_motion, save_bvh
     from retime.viz.plot import plot_timing
     from retime.viz.progress import progress
-    from retime.warp import apply_timing, snap_duration
+    from retime.warp import apply_timing, output_duration
 
     t_start = time.perf_counter()
     if not (0 < scale < 10):
@@ -176,7 +176,7 @@ def run_demo(
                 raise RetimeError(f"--frames {a}:{b}: the clip has frames 0 to {motion.n_frames - 1}; "
                                   "give FIRST:LAST with FIRST < LAST")
             motion = motion.frames(slice(a, b + 1))
-        duration = snap_duration(motion.duration * scale, motion.fps)
+        duration = output_duration(motion.duration, motion.fps, scale=scale)  # as --scale gives it
         flight = flight_phase(motion)
         bar.update(1)
 
@@ -247,7 +247,8 @@ def run_demo(
         render_fps = None
         if video:
             bar.set_postfix_str("video")
-            from retime.viz.render import Renderer, VideoWriter, track_from_motion
+            from retime.viz.render import Renderer, track_from_motion
+            from retime.viz.video import VideoWriter
 
             # feet in contact (from the physics report) highlighted in every panel
             src_contacts = None

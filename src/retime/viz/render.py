@@ -16,17 +16,15 @@ from __future__ import annotations
 
 import math
 import os
-import queue
 import re
-import threading
 from dataclasses import dataclass, field
-from fractions import Fraction
 from typing import Iterator, Sequence
 
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 from retime.errors import RetimeError
+from retime.viz.video import VideoWriter
 from retime.warp import frame_bracket, lerp_frames
 
 # Colours (RGB).  One accent per panel, chosen by label when it names a method.
@@ -587,138 +585,6 @@ class Renderer:
     def frames(self) -> Iterator[np.ndarray]:
         for k in range(self.n_frames):
             yield self.frame(k)
-
-
-# ---------------------------------------------------------------------- encoding
-_VIDEO_EXTS = {".mp4": "libx264", ".mkv": "libx264", ".mov": "libx264", ".gif": "gif"}
-
-
-def _fps_fraction(fps: float) -> Fraction:
-    return Fraction(fps).limit_denominator(1001)
-
-
-class VideoWriter:
-    """Writes RGB frames to .mp4/.mkv/.mov (H.264, yuv420p) or .gif with PyAV.
-
-    Use as a context manager; writes to a temporary file beside ``path`` and renames it on success.
-    """
-
-    def __init__(self, path: str | os.PathLike, width: int, height: int, fps: float, crf: int = 20,
-                 palette_frames: Sequence[np.ndarray] | None = None):
-        import av
-
-        self.path = os.fspath(path)
-        ext = os.path.splitext(self.path)[1].lower()
-        if ext not in _VIDEO_EXTS:
-            raise RetimeError(f"{self.path}: unsupported video type {ext or '(none)'}; use .mp4, .mkv, .mov or .gif")
-        if width % 2 or height % 2:
-            if ext != ".gif":
-                raise RetimeError(f"{self.path}: H.264 needs an even frame size, got {width}x{height}")
-        directory = os.path.dirname(os.path.abspath(self.path))
-        if not os.path.isdir(directory):
-            raise RetimeError(f"{self.path}: folder {directory} does not exist")
-        self.ext = ext
-        self.width, self.height = width, height
-        base = os.path.basename(self.path)
-        self.tmp = os.path.join(directory, f".{base}.tmp{os.getpid()}{ext}")
-        self.container = av.open(self.tmp, mode="w")
-        rate = _fps_fraction(fps)
-        self._palette = None
-        if ext == ".gif":
-            # GIF: one 256-colour palette for the whole clip (from sample frames, else the first
-            # frame), no dithering, so flat areas stay flat and the file stays small
-            self.stream = self.container.add_stream("gif", rate=rate)
-            self.stream.pix_fmt = "pal8"
-            if palette_frames:
-                self._palette = _make_palette(palette_frames)
-        else:
-            self.stream = self.container.add_stream("libx264", rate=rate)
-            self.stream.pix_fmt = "yuv420p"
-            # two x264 threads: with more, they fight the renderer for this machine's cores
-            self.stream.options = {"crf": str(crf), "preset": "veryfast", "tune": "animation", "threads": "2"}
-        self.stream.width, self.stream.height = width, height
-        self.n = 0
-        self._closed = False
-        self._error: BaseException | None = None
-        self._queue: queue.Queue = queue.Queue(maxsize=8)
-        self._thread = threading.Thread(target=self._encode_loop, name="retime-encode", daemon=True)
-        self._thread.start()
-
-    def write(self, frame: np.ndarray) -> None:
-        """Queue one (H, W, 3) uint8 RGB frame; encoding runs in a background thread."""
-        if frame.shape != (self.height, self.width, 3):
-            raise ValueError(f"frame shape {frame.shape} != {(self.height, self.width, 3)}")
-        if self._error is not None:
-            raise self._error
-        self._queue.put(np.ascontiguousarray(frame, dtype=np.uint8))
-        self.n += 1
-
-    def _encode_loop(self) -> None:
-        import av
-
-        try:
-            while True:
-                frame = self._queue.get()
-                if frame is None:
-                    break
-                if self.ext == ".gif":
-                    if self._palette is None:
-                        self._palette = _make_palette([frame])
-                    img, table = self._palette
-                    idx = np.asarray(Image.fromarray(frame).quantize(palette=img, dither=Image.Dither.NONE))
-                    vf = av.VideoFrame.from_ndarray((idx, table), format="pal8")
-                else:
-                    vf = av.VideoFrame.from_ndarray(frame, format="rgb24")
-                for packet in self.stream.encode(vf):
-                    self.container.mux(packet)
-            for packet in self.stream.encode():
-                self.container.mux(packet)
-        except BaseException as exc:  # reported by write()/close() in the caller's thread
-            self._error = exc
-            while self._queue.get() is not None:
-                pass
-
-    def close(self, ok: bool = True) -> None:
-        if self._closed:
-            return
-        self._closed = True
-        try:
-            self._queue.put(None)
-            self._thread.join()
-        finally:
-            self.container.close()
-        if ok and self._error is not None:
-            os.remove(self.tmp)
-            raise self._error
-        if ok:
-            os.replace(self.tmp, self.path)
-        elif os.path.exists(self.tmp):
-            os.remove(self.tmp)
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, exc_type, exc, tb):
-        self.close(ok=exc_type is None)
-        return False
-
-
-def _make_palette(frames: Sequence[np.ndarray]) -> tuple[Image.Image, np.ndarray]:
-    """A 256-colour palette image and its (256, 4) ARGB table, from a mosaic of sample frames."""
-    small = [Image.fromarray(np.ascontiguousarray(f, dtype=np.uint8)).reduce(2) for f in frames]
-    w = sum(im.width for im in small)
-    h = max(im.height for im in small)
-    mosaic = Image.new("RGB", (w, h), tuple(int(c) for c in small[0].getpixel((0, 0))))
-    x = 0
-    for im in small:
-        mosaic.paste(im, (x, 0))
-        x += im.width
-    pal_img = mosaic.quantize(colors=255, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
-    pal = np.array(pal_img.getpalette()[: 256 * 3], dtype=np.uint8).reshape(-1, 3)
-    table = np.zeros((256, 4), dtype=np.uint8)
-    table[: len(pal), 1:] = pal  # PyAV takes pal8 palette entries as A, R, G, B
-    table[:, 0] = 255
-    return pal_img, table
 
 
 def _progress(total: int, desc: str, quiet: bool):
