@@ -18,7 +18,7 @@ from retime.motion import mistakes as M
 from retime.physics.check import check_clip
 from retime.physics.dynamics import RIDGE, dynamics_terms
 from retime.physics.plausibility import STANCE_RATE
-from retime.physics.stance_rate import RATES, _residuals, stance_rate
+from retime.physics.stance_rate import RATES, SOLE_ON_FLOOR_M, _bearing_columns, _residuals, sole_on_floor, stance_rate
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 
@@ -40,6 +40,30 @@ def test_the_residual_kernel_is_the_nonnegative_least_squares_residual():
         for k in (0, 7, 15, 30):
             w = RATES[k] ** 2 * b[i] + c[i]
             assert out[k, i] == pytest.approx(nnls(A[i, :, :5], w)[1], rel=1e-6, abs=1e-9)
+
+
+def test_only_the_sole_corners_on_the_floor_bear():
+    # left foot rolled onto its toe (heel corners 2 cm up), right foot flat but for one toe corner
+    # just above the tolerance: their columns (4 friction edges a corner) are zeroed, the rest kept
+    corners = np.zeros((1, 8, 3))
+    corners[0, :, 1] = [0.02, 0.02, 0.0, 0.001, 0.0, 0.002, 0.003, 0.003 + SOLE_ON_FLOOR_M]
+    assert sole_on_floor(corners).tolist() == [[False, False, True, True, True, True, True, False]]
+    values = np.ones((1, 6, 32))
+    kept = _bearing_columns(values, corners)
+    assert kept[0, :, :8].sum() == 0 and kept[0, :, 8:16].min() == 1.0
+    assert kept[0, :, 16:28].min() == 1.0 and kept[0, :, 28:].sum() == 0
+    assert _bearing_columns(np.ones((1, 6, 4)), None).min() == 1.0  # not the feet's corners: left alone
+
+
+def test_the_median_of_steps_and_its_uncertainty():
+    from retime.physics.stance_rate import StanceRate
+
+    agreeing = StanceRate(0.8, 2.0, np.zeros(0), np.array([0.8, 0.8, 0.8, 0.8]))
+    assert agreeing.uncertainty == 0.0 and agreeing.steps_beyond(0.8) == 4
+    spread = StanceRate(0.9, 2.0, np.zeros(0), np.exp([-0.3, -0.2, -0.1, 0.0, 0.1]))
+    # MAD 0.1 in log: 1.4826 * 0.1 * 1.2533 / sqrt(5)
+    assert spread.uncertainty == pytest.approx(0.0831, abs=1e-3) and spread.steps_beyond(0.9) == 3
+    assert StanceRate(1.2, 0.4, np.zeros(0), np.array([1.2])).uncertainty == float("inf")
 
 
 def _pendulum_on_one_foot(k: float, fps: float = 100.0, seconds: float = 0.6):
@@ -85,19 +109,22 @@ def test_an_inverted_pendulum_on_one_foot_gives_its_time_factor(k):
     # (zero at the grid's rate nearest k: exactly at k = 1, which the grid holds)
     assert found.residual.min() < 0.05 * min(found.residual[0], found.residual[-1])
     if k == 1.0:
-        assert found.residual.min() < 1e-9 and found.contrast == pytest.approx(1.0)
+        assert found.residual.min() < 1e-9
     assert found.seconds == pytest.approx(0.6)
+    assert len(found.steps) == 1 and found.steps[0] == found.time_factor  # one stance: one step
 
 
 def test_the_stance_rate_scales_with_time_exactly(walk):
-    # velocity terms 1/k^2 as large (the clip played k times too slow): the rate found is k times as
-    # large, to rounding, when k is a whole number of the grid's steps
+    # velocity terms 1/k^2 as large (the clip played k times too slow): each step's rate is k times as
+    # large, to rounding, when k is a whole number of the grid's steps (a step whose best rate lay
+    # below the grid may come into it, so the median moves by about k, not exactly)
     terms = dynamics_terms(walk)
     pd0 = terms.combine()
     k = float(RATES[3] / RATES[0])
     own, slow = stance_rate(terms, pd0), stance_rate(terms, dataclasses.replace(pd0, b=pd0.b / k ** 2))
-    assert own.time_factor is not None and slow.time_factor == pytest.approx(k * own.time_factor, rel=1e-9)
-    assert slow.contrast > 1.2 > own.contrast
+    assert own.time_factor is not None and len(own.steps) >= 2
+    assert np.isclose(slow.steps[:, None], k * own.steps[None], rtol=1e-9).any(axis=0).all()
+    assert slow.time_factor == pytest.approx(k * own.time_factor, rel=0.05)
     assert STANCE_RATE[0] <= own.time_factor <= STANCE_RATE[1]
 
 
@@ -108,7 +135,7 @@ def test_a_walk_played_too_slow_is_named_from_its_stance(walk, jump):
     assert c.verdict.codes == ["frame_rate"] and "no flight to measure" in c.verdict.causes[0]
     assert _factor(c.verdict.causes[0]) == pytest.approx(1.25, rel=0.1)
     assert "Frame Time 0.0104 s" in c.verdict.causes[0]
-    assert c.summary()["stance_time_factor"] == pytest.approx(1.25, rel=0.1)
+    assert c.summary()["stance_time_factor"] == pytest.approx(1.25, rel=0.1) and c.summary()["stance_steps"] >= 2
     assert check_clip(jump).verdict.stance is None  # where a flight is measured, it decides
 
 
@@ -126,6 +153,18 @@ def test_a_walk_at_the_wrong_frame_time_is_named_with_its_factor(factor):
     c = check_clip(M.wrong_frame_time(walk, factor))
     assert c.verdict.codes == ["frame_rate"]
     assert _factor(c.verdict.causes[0]) == pytest.approx(factor, rel=0.1)
+
+
+@pytest.mark.parametrize("name, factor", [("16_16.amc", 0.8), ("16_31.amc", 0.8), ("16_17.amc", 1.25),
+                                          ("16_33.amc", 1.25)])
+def test_a_cmu_walk_at_the_wrong_frame_time_is_named(name, factor):
+    # CMU subject 16's walks keep the heel 'in contact' through push-off; on the whole sole their own
+    # rate read 1.07-1.13 and these variants were missed (0.90-0.96 and 1.11-1.15)
+    walk = _dev(f"cmu/{name}")
+    assert check_clip(walk).physical
+    c = check_clip(M.wrong_frame_time(walk, factor))
+    assert c.verdict.codes == ["frame_rate"] and "no flight to measure" in c.verdict.causes[0]
+    assert _factor(c.verdict.causes[0]) == pytest.approx(factor, rel=0.15)
 
 
 def test_a_dance_is_not_judged_as_a_gait():

@@ -89,7 +89,7 @@ class ClipCheck:
             "flight_share": round(float(self.flight.mean()), 4),
             "flight_g": None if self.flight_g is None else round(self.flight_g, 3),
             "flights": verdict["flights"], "time_factor": verdict["time_factor"],
-            "stance_time_factor": verdict["stance_time_factor"],
+            "stance_time_factor": verdict["stance_time_factor"], "stance_steps": verdict["stance_steps"],
             "median_foot_slide": round(float(np.median(slide)), 4) if slide.size else 0.0,
             "worst_frames": self.worst_frames(),
             "codes": self.verdict.codes,

@@ -6,9 +6,9 @@
   Frame Time that fits); one whose body barely falls with both feet off the floor is held up by
   something physics does not see (``held_up``).
 * **Stance** (:mod:`.stance_rate`), for a gait without a measured flight (walks, a run's short
-  flights): on one foot the contact forces must explain the body's wrench through that sole; the
-  uniform rate at which they do so best says how many times too slow the clip plays
-  (``frame_rate``), when it is clearly away from 1.
+  flights): on one foot the contact forces must explain the body's wrench through the sole corners
+  on the floor; the uniform rate at which they do so best, the median over the steps, says how many
+  times too slow the clip plays (``frame_rate``), when it is clearly away from 1.
 * **Floor and root**: feet that move at floor height while the root goes nowhere are on a
   treadmill (``treadmill``), or skate (``foot_slide``); a root that never moves is an in-place
   export (``root_locked``); a pose that never changes while the root moves was written in radians
@@ -48,10 +48,12 @@ FLIGHT_G = (0.8, 1.3)  # flights falling in this range (units of g) play at thei
 # (real flights on CMU and the dev set, with the default body's masses: 0.91-1.19 g; Frame Time
 # x1.25 gives 0.59-0.76 g, x0.8 1.43-1.86 g)
 MIN_FLIGHT_S = 0.1  # fitted flight (s) below this says nothing about the frame rate
-STANCE_RATE = (0.88, 1.18)  # without a flight, a single-support rate (:mod:`.stance_rate`) in this range is the clip's own
-# (real walks and a run on CMU and the dev set: 0.92-1.13; Frame Time x0.8 gives 0.71-0.96, x1.25 1.11-1.35:
-# the cue is weaker than a flight's, so half of those variants stay inside)
-STANCE_CONTRAST = 1.2  # ... and only when its own rate needs this many times the least residual (caught variants: 1.29-2.64)
+STANCE_RATE = (0.92, 1.11)  # without a flight, a single-support rate (:mod:`.stance_rate`) in this range is the clip's own
+# (real walks and a run on CMU and the dev set: 0.94-1.08; Frame Time x0.8 gives 0.73-0.90, x1.25 1.13-1.39:
+# the edges sit between those, a few per cent from each, so a rate off by 10 % is mostly not named)
+STANCE_MIN_STEPS = 2  # ... measured on at least this many steps (a median of one step is that step's noise)
+# ... and further from 1 than its steps' spread allows (one standard error of the median): a real
+# run whose steps read 0.54-1.26 (131_03, median 0.91 +- 16 %; its flight decides it) would not be named
 LOCOMOTION_M_S = 0.35  # ... and only on a clip whose root travels this fast: a gait (walks 0.42-2.0 m/s; a samba 0.24)
 HELD_G = 0.2  # flights falling slower than this are held up, not slowed down (a rate 2.2x off)
 TREADMILL_TRAVEL = 0.3  # the root travelling less than this share of the feet's floor speed: a treadmill
@@ -128,6 +130,7 @@ class SourceCheck:
                 "time_factor": None if f is None or f.time_factor is None else round(f.time_factor, 4),
                 "stance_time_factor": None if self.stance is None or self.stance.time_factor is None
                 else round(self.stance.time_factor, 4),
+                "stance_steps": 0 if self.stance is None else len(self.stance.steps),
                 "root_travel": round(self.travel, 4), "floor_slide": round(self.slide, 4), "judged_share": round(self.judged_share, 4)}
 
 
@@ -217,10 +220,12 @@ def stance_cause(stance: StanceRate, fps: float) -> Cause:
     """A clip without a measured flight whose single-support frames fit another rate
     (:mod:`.stance_rate`): the wrong frame rate, named as :func:`flight_cause` names it."""
     how, times, rate_fix = _rate_parts(stance.time_factor, fps)
+    k = stance.time_factor
     return Cause("frame_rate", f"plays {how}: {times} ({rate_fix}); with no flight to measure, on one foot "
                                f"({stance.seconds:.2f} s of single support) the contact forces explain the motion "
-                               f"best with its time scaled by {stance.time_factor:.2f}; at its own rate the residual "
-                               f"is {stance.contrast:.2f}x that least one")
+                               f"best with its time scaled by {k:.2f} (the median of {len(stance.steps)} steps, "
+                               f"+-{np.expm1(stance.uncertainty):.0%}; {stance.steps_beyond(k)} of them "
+                               f"{'above' if k > 1 else 'below'} 1)")
 
 
 def _near(mask, frames: int) -> np.ndarray:
@@ -327,8 +332,9 @@ def check_source(motion, terms, regions) -> SourceCheck:
     # without a flight the single-support frames are the rate's only measure (flights stay primary)
     # (calibrated on walks and runs, where the body vaults over one foot at a time: not on dances)
     stance = stance_rate(terms) if not found and not measured and travel >= LOCOMOTION_M_S else None
-    if stance is not None and stance.time_factor is not None and stance.contrast >= STANCE_CONTRAST and \
-            not STANCE_RATE[0] <= stance.time_factor <= STANCE_RATE[1]:
+    if stance is not None and stance.time_factor is not None and len(stance.steps) >= STANCE_MIN_STEPS and \
+            not STANCE_RATE[0] <= stance.time_factor <= STANCE_RATE[1] and \
+            abs(np.log(stance.time_factor)) > stance.uncertainty:
         found.append(stance_cause(stance, fps))
     # frames within two smoothing widths of a flight get the stance forces around it smeared into them:
     # there the flight's parabola judges the clip, not the residual
