@@ -66,6 +66,26 @@ def test_the_median_of_steps_and_its_uncertainty():
     assert StanceRate(1.2, 0.4, np.zeros(0), np.array([1.2])).uncertainty == float("inf")
 
 
+def test_a_stance_rate_is_named_when_its_steps_agree_and_cautioned_when_not():
+    from retime.physics.plausibility import stance_finding
+    from retime.physics.stance_rate import StanceRate
+
+    def rate(steps):
+        steps = np.asarray(steps, dtype=float)
+        return StanceRate(float(np.exp(np.median(np.log(steps)))), 2.0, np.zeros(0), steps)
+
+    cause, caution = stance_finding(rate([0.82, 0.84, 0.85, 0.86, 0.88]), 120.0)
+    assert cause.code == "frame_rate" and caution is None and "too fast" in cause.sentence
+    assert "the median of 5 steps" in cause.sentence and "5 of them below 1" in cause.sentence
+    # outside the band, but on one step, or on steps spread from 0.5 to 1.5: a caution, not a cause
+    for doubtful in ([0.8], [0.5, 0.6, 0.85, 1.3, 1.5]):
+        cause, caution = stance_finding(rate(doubtful), 120.0)
+        assert cause is None and caution.code == "frame_rate_unconfirmed"
+        assert caution.sentence.startswith("frame rate unconfirmed") and "no flight to measure" in caution.sentence
+    assert stance_finding(rate([0.97, 1.0, 1.02]), 120.0) == (None, None)  # inside the band: the clip's own
+    assert stance_finding(None, 120.0) == (None, None)
+
+
 def _pendulum_on_one_foot(k: float, fps: float = 100.0, seconds: float = 0.6):
     """A point mass of 70 kg vaulting over one foot as an inverted pendulum (c_h'' = g/h (c_h - p_h),
     height h constant), as the path dynamics of a clip played ``k`` times too slow: its velocity
@@ -171,3 +191,22 @@ def test_a_dance_is_not_judged_as_a_gait():
     # a samba on one foot at a time, travelling 0.24 m/s: its stance rate (0.56) is not a gait's
     c = check_clip(_dev("bvh-dev/samba_dancing.bvh"))
     assert c.physical and c.verdict.stance is None
+
+
+def test_a_caution_is_exit_3_and_in_the_report(capsys, monkeypatch, tmp_path):
+    # the bundled walk 16_15 (no flight) with its stance rate replaced by one step at 0.8: physical,
+    # but the frame rate unconfirmed, said in the verdict line, the report and the exit code
+    import json
+
+    from retime.cli import main
+    from retime.physics import plausibility
+    from retime.physics.stance_rate import StanceRate
+
+    monkeypatch.setattr(plausibility, "stance_rate", lambda terms: StanceRate(0.8, 0.4, np.zeros(0), np.array([0.8])))
+    report = tmp_path / "r.json"
+    code = main(["check", str(bundled_path("16_15.amc")), "--report", str(report)])
+    out = capsys.readouterr().out
+    assert code == 3 and "physical as captured, with a caution" in out and "[frame_rate_unconfirmed]" in out
+    summary = json.loads(report.read_text())["summary"]
+    assert summary["physical"] and summary["cautions"] == ["frame_rate_unconfirmed"] and summary["codes"] == []
+    assert summary["stance_steps"] == 1 and "one step" in summary["caution_sentences"][0]

@@ -74,7 +74,7 @@ class Cause:
     sentence: str
 
     def __post_init__(self):
-        assert self.code in CAUSES, self.code
+        assert self.code in CAUSES or self.code in CAUTIONS, self.code
 
 
 CAUSES = {  # code: what it means (the sentence gives the numbers)
@@ -90,6 +90,11 @@ CAUSES = {  # code: what it means (the sentence gives the numbers)
 }
 
 
+CAUTIONS = {  # code: what it means; a clip with only these is physical, but the check could not confirm it
+    "frame_rate_unconfirmed": "with no flight to measure, the single support fits another rate, but its steps disagree",
+}
+
+
 @dataclass
 class SourceCheck:
     physical: bool
@@ -101,6 +106,7 @@ class SourceCheck:
     slide: float = 0.0  # m/s, median horizontal speed of the foot points bearing on the floor
     judged: np.ndarray | None = None  # (F,) bool: the frames the residual judged (None: all; the rest are near flights)
     stance: StanceRate | None = None  # the single-support rate (None: not measured, as where a flight is)
+    cautions: list[Cause] = field(default_factory=list)  # doubts that leave the clip physical (:data:`CAUTIONS`)
 
     @property
     def judged_share(self) -> float:
@@ -131,6 +137,7 @@ class SourceCheck:
                 "stance_time_factor": None if self.stance is None or self.stance.time_factor is None
                 else round(self.stance.time_factor, 4),
                 "stance_steps": 0 if self.stance is None else len(self.stance.steps),
+                "cautions": [c.code for c in self.cautions], "caution_sentences": [c.sentence for c in self.cautions],
                 "root_travel": round(self.travel, 4), "floor_slide": round(self.slide, 4), "judged_share": round(self.judged_share, 4)}
 
 
@@ -216,16 +223,38 @@ def flight_cause(flight: FlightGravity, fps: float, frame) -> Cause:
     return Cause("frame_rate", s)
 
 
+def _stance_steps(stance: StanceRate) -> str:
+    k, n = stance.time_factor, len(stance.steps)
+    steps = (f"the median of {n} steps, +-{np.expm1(stance.uncertainty):.0%}; {stance.steps_beyond(k)} of them "
+             f"{'above' if k > 1 else 'below'} 1") if n > 1 else "one step"
+    return (f"on one foot ({stance.seconds:.2f} s of single support) the contact forces explain the motion best "
+            f"with its time scaled by {k:.2f} ({steps})")
+
+
 def stance_cause(stance: StanceRate, fps: float) -> Cause:
     """A clip without a measured flight whose single-support frames fit another rate
     (:mod:`.stance_rate`): the wrong frame rate, named as :func:`flight_cause` names it."""
     how, times, rate_fix = _rate_parts(stance.time_factor, fps)
-    k = stance.time_factor
-    return Cause("frame_rate", f"plays {how}: {times} ({rate_fix}); with no flight to measure, on one foot "
-                               f"({stance.seconds:.2f} s of single support) the contact forces explain the motion "
-                               f"best with its time scaled by {k:.2f} (the median of {len(stance.steps)} steps, "
-                               f"+-{np.expm1(stance.uncertainty):.0%}; {stance.steps_beyond(k)} of them "
-                               f"{'above' if k > 1 else 'below'} 1)")
+    return Cause("frame_rate", f"plays {how}: {times} ({rate_fix}); with no flight to measure, {_stance_steps(stance)}")
+
+
+def stance_caution(stance: StanceRate, fps: float) -> Cause:
+    """A stance rate outside :data:`STANCE_RATE` on too few steps, or on steps too spread to tell it
+    from 1: the clip may play at the wrong rate; said as a caution, not a cause."""
+    how, times, _ = _rate_parts(stance.time_factor, fps)
+    return Cause("frame_rate_unconfirmed", f"frame rate unconfirmed: {_stance_steps(stance)}, too few or too spread "
+                                           f"to tell from its own rate; no flight to measure (if it plays {how}: {times})")
+
+
+def stance_finding(stance: StanceRate | None, fps: float) -> tuple[Cause | None, Cause | None]:
+    """(cause, caution) of a stance rate: ``frame_rate`` when it lies outside :data:`STANCE_RATE` on
+    :data:`STANCE_MIN_STEPS` steps or more and further from 1 than their median's uncertainty; a
+    ``frame_rate_unconfirmed`` caution when it lies outside on fewer or disagreeing steps."""
+    if stance is None or stance.time_factor is None or STANCE_RATE[0] <= stance.time_factor <= STANCE_RATE[1]:
+        return None, None
+    if len(stance.steps) >= STANCE_MIN_STEPS and abs(np.log(stance.time_factor)) > stance.uncertainty:
+        return stance_cause(stance, fps), None
+    return None, stance_caution(stance, fps)
 
 
 def _near(mask, frames: int) -> np.ndarray:
@@ -332,10 +361,9 @@ def check_source(motion, terms, regions) -> SourceCheck:
     # without a flight the single-support frames are the rate's only measure (flights stay primary)
     # (calibrated on walks and runs, where the body vaults over one foot at a time: not on dances)
     stance = stance_rate(terms) if not found and not measured and travel >= LOCOMOTION_M_S else None
-    if stance is not None and stance.time_factor is not None and len(stance.steps) >= STANCE_MIN_STEPS and \
-            not STANCE_RATE[0] <= stance.time_factor <= STANCE_RATE[1] and \
-            abs(np.log(stance.time_factor)) > stance.uncertainty:
-        found.append(stance_cause(stance, fps))
+    cause, caution = stance_finding(stance, fps)
+    found += [cause] if cause is not None else []
+    cautions = [caution] if caution is not None else []
     # frames within two smoothing widths of a flight get the stance forces around it smeared into them:
     # there the flight's parabola judges the clip, not the residual
     # (flights too short to fit, as a run's may be, are not contradicted either)
@@ -343,4 +371,4 @@ def check_source(motion, terms, regions) -> SourceCheck:
     off, med = _over(res[judged])
     if off > MAX_OFF_SHARE and not found:
         found.append(_residual_cause(off, med, frame, air, ballistic))
-    return SourceCheck(not found, off, med, found, flight, travel, slide, judged, stance)
+    return SourceCheck(not found, off, med, found, flight, travel, slide, judged, stance, cautions)
