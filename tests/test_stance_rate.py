@@ -82,6 +82,11 @@ def test_a_stance_rate_is_named_when_its_steps_agree_and_cautioned_when_not():
         cause, caution = stance_finding(rate(doubtful), 120.0)
         assert cause is None and caution.code == "frame_rate_unconfirmed"
         assert caution.sentence.startswith("frame rate unconfirmed") and "no flight to measure" in caution.sentence
+    from retime.physics.plausibility import SourceCheck
+
+    # physics' warning says the caution too
+    assert SourceCheck(True, 0.0, 0.0, cautions=[caution]).message() == caution.sentence
+    assert SourceCheck(True, 0.0, 0.0).message() == ""
     assert stance_finding(rate([0.97, 1.0, 1.02]), 120.0) == (None, None)  # inside the band: the clip's own
     assert stance_finding(None, 120.0) == (None, None)
 

@@ -121,8 +121,8 @@ class SourceCheck:
         return [c.code for c in self.found]
 
     def message(self) -> str:
-        if self.physical:
-            return ""
+        if self.physical:  # physics' warning: a caution is said too, as check says it
+            return "; ".join(c.sentence for c in self.cautions)
         return (f"this clip is not physical as captured: {'; '.join(self.causes)}. Feasibility is measured "
                 "against regions widened to the clip's own residual, so it means less than usual")
 
