@@ -24,7 +24,7 @@ DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 
 
 def _factor(sentence: str) -> float:
-    k, how = re.search(r"plays (\d+\.\d+)x too (slow|fast)", sentence).groups()
+    k, how = re.search(r"plays? (\d+\.\d+)x too (slow|fast)", sentence).groups()
     return float(k) if how == "slow" else 1.0 / float(k)
 
 
@@ -215,3 +215,23 @@ def test_a_caution_is_exit_3_and_in_the_report(capsys, monkeypatch, tmp_path):
     summary = json.loads(report.read_text())["summary"]
     assert summary["physical"] and summary["cautions"] == ["frame_rate_unconfirmed"] and summary["codes"] == []
     assert summary["stance_steps"] == 1 and "one step" in summary["caution_sentences"][0]
+
+
+def test_flights_at_g_under_an_unusual_guessed_unit_are_a_caution():
+    # jumping.bvh's guess (0.0376 m a unit) with its Frame Time x1.25: the flight falls at 0.95 g under
+    # the guess, at 0.64 g in inches, the nearest common unit: which is right, the flight cannot say
+    from types import SimpleNamespace
+
+    from retime.physics.plausibility import unit_caution
+
+    guess = SimpleNamespace(unit_confidence="unusual scale", meters_per_unit=0.0376)
+    c = unit_caution(SimpleNamespace(ratio=0.95), 120.0, guess)
+    assert c.code == "units_unconfirmed" and "nearest common unit, in," in c.sentence
+    assert _factor(c.sentence) == pytest.approx(np.sqrt(0.0376 / (0.95 * 0.0254)), rel=0.01)  # 1.25x too slow
+    assert unit_caution(SimpleNamespace(ratio=0.95), 120.0, SimpleNamespace(unit_confidence="sure",
+                                                                            meters_per_unit=0.0376)) is None
+    # a guess that is a common unit, or one whose nearest common unit also gives flights at about g: nothing
+    assert unit_caution(SimpleNamespace(ratio=1.0), 120.0, SimpleNamespace(unit_confidence="likely",
+                                                                           meters_per_unit=0.0254)) is None
+    assert unit_caution(SimpleNamespace(ratio=1.0), 120.0, SimpleNamespace(unit_confidence="unusual scale",
+                                                                           meters_per_unit=0.028)) is None

@@ -1,5 +1,5 @@
 """``retime check``: is a clip physical as captured? A linter's exit code: 0 yes, 1 no, 2 bad input,
-3 physical with a caution (the frame rate could not be confirmed)."""
+3 physical with a caution (the frame rate or the length unit could not be confirmed)."""
 from __future__ import annotations
 
 import argparse

@@ -92,6 +92,8 @@ CAUSES = {  # code: what it means (the sentence gives the numbers)
 
 CAUTIONS = {  # code: what it means; a clip with only these is physical, but the check could not confirm it
     "frame_rate_unconfirmed": "with no flight to measure, the single support fits another rate, but its steps disagree",
+    "units_unconfirmed": "the flights fall at g under a guessed, unusual length unit: in the nearest common unit "
+                         "the clip would play at another rate",
 }
 
 
@@ -257,6 +259,25 @@ def stance_finding(stance: StanceRate | None, fps: float) -> tuple[Cause | None,
     return None, stance_caution(stance, fps)
 
 
+def unit_caution(flight: FlightGravity, fps: float, frame) -> Cause | None:
+    """Flights falling at g under a guessed length unit that is no common one confirm the unit only if
+    the frame rate is right (g scales with the unit and with the rate squared): when the nearest common
+    unit would make them fall outside :data:`FLIGHT_G`, a caution naming that unit and the rate it implies."""
+    from ..motion.frame import UNITS
+
+    if frame is None or frame.unit_confidence in KNOWN_UNIT or flight.ratio is None:
+        return None
+    name, mpu = min(UNITS.items(), key=lambda u: abs(np.log(u[1] / frame.meters_per_unit)))
+    ratio = flight.ratio * mpu / frame.meters_per_unit  # the flights' g in that unit
+    if abs(mpu / frame.meters_per_unit - 1.0) <= UNIT_SNAP or FLIGHT_G[0] <= ratio <= FLIGHT_G[1]:
+        return None
+    how, times, _ = _rate_parts(1.0 / np.sqrt(ratio), fps)
+    return Cause("units_unconfirmed", f"length unit unconfirmed: read as 1 unit = {frame.meters_per_unit:.4g} m "
+                                      f"({frame.unit_confidence}), under which the flights fall at {flight.ratio:.2f} g; "
+                                      f"in the nearest common unit, {name}, they would fall at {ratio:.2f} g and the "
+                                      f"clip would play {how} ({times}): give --units to confirm")
+
+
 def _near(mask, frames: int) -> np.ndarray:
     return binary_dilation(mask, iterations=frames) if frames > 0 and mask.any() else mask
 
@@ -364,6 +385,8 @@ def check_source(motion, terms, regions) -> SourceCheck:
     cause, caution = stance_finding(stance, fps)
     found += [cause] if cause is not None else []
     cautions = [caution] if caution is not None else []
+    if not found and ballistic:
+        cautions += [c for c in [unit_caution(flight, fps, frame)] if c is not None]
     # frames within two smoothing widths of a flight get the stance forces around it smeared into them:
     # there the flight's parabola judges the clip, not the residual
     # (flights too short to fit, as a run's may be, are not contradicted either)
