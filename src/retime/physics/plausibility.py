@@ -21,6 +21,10 @@
   forces around a run's 0.1 s flights into them (a run's frames would otherwise read 17-70 %
   over). Residual left with no named cause is ``unexplained`` (hands, props, keyframed motion).
 
+**Cautions** (:data:`CAUTIONS`) are doubts that leave a clip physical: a stance rate outside its
+band on one step or on disagreeing steps (``frame_rate_unconfirmed``), and flights at g under a
+guessed, unusual length unit, which g cannot tell from a wrong rate (``units_unconfirmed``).
+
 Regions are widened by the residual, so a retiming of such a clip can look "100 % feasible" while
 its physics means little: :func:`check_source` says so, and why.
 
