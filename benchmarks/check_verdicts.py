@@ -66,7 +66,8 @@ def row(name, variant, m, physics: bool) -> dict:
     s = c.summary()
     out = {"file": name, "variant": variant, "up": m.skeleton.up, "unit": m.skeleton.frame.unit,
            "physical": s["physical"], "codes": s["codes"], "flight_g": s["flight_g"], "flights": s["flights"],
-           "time_factor": s["time_factor"], "stance": s["stance_time_factor"], "off": s["off_share"], "causes": s["causes"], "feasible": None}
+           "time_factor": s["time_factor"], "stance": s["stance_time_factor"], "off": s["off_share"],
+           "causes": s["causes"] + s["caution_sentences"], "cautions": s["cautions"], "feasible": None}
     if physics:
         from retime.physics.api import physics_warp
 
@@ -84,7 +85,7 @@ def fmt(r) -> str:
     st = "-" if r["stance"] is None else f"{r['stance']:.2f}"
     f = "" if r["feasible"] is None else (f" {r['feasible']:6.1%}" if isinstance(r["feasible"], float) else f" {r['feasible']}")
     return (f"{r['file'][:26]:26s} {r['variant']:9s} {r['up']:>3s} {r['unit'][:9]:>9s} "
-            f"{'physical' if r['physical'] else 'NOT':8s} {','.join(r['codes']) or '-':24s} {g:>5s} ({r['flights']:2d}) "
+            f"{('caution' if r['cautions'] else 'physical') if r['physical'] else 'NOT':8s} {','.join(r['codes'] + r['cautions']) or '-':24s} {g:>5s} ({r['flights']:2d}) "
             f"{k:>5s} {st:>6s} {r['off']:5.2f}{f} {r['sec']:5.1f}s")
 
 
@@ -154,6 +155,9 @@ def score(rows):
         ok = sum(r["physical"] for r in real)
         print(f"\nreal overground captures physical: {ok}/{len(real)} ({ok / len(real):.0%}); not: "
               + (", ".join(f"{r['file']} ({','.join(r['codes'])})" for r in real if not r["physical"]) or "none"))
+        cautioned = [r["file"] for r in real if r["physical"] and r["cautions"]]
+        print(f"real overground captures physical with a caution: {len(cautioned)}/{len(real)}"
+              + (f" ({', '.join(cautioned)})" if cautioned else ""))
     for v in VARIANTS:
         vs = [r for r in rows if r["variant"] == v and r["expect"]]
         if not vs:
@@ -161,8 +165,10 @@ def score(rows):
         flagged = sum(not r["physical"] for r in vs)
         right = sum(r["expect"] in r["codes"] for r in vs)
         missed = [r["file"] for r in vs if r["expect"] not in r["codes"]]
+        cautioned = [r["file"] for r in vs if r["physical"] and r["cautions"]]
         print(f"{v:9s}: not physical {flagged}/{len(vs)}, with the cause {vs[0]['expect']} {right}/{len(vs)}"
-              + (f"; without it: {', '.join(missed)}" if missed else ""))
+              + (f"; without it: {', '.join(missed)}" if missed else "")
+              + (f"; of those with a caution: {', '.join(cautioned)}" if cautioned else ""))
 
 
 if __name__ == "__main__":

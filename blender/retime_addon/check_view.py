@@ -62,7 +62,7 @@ class CheckJob(ArmatureJob):
     def finish(self, context):
         """Read the report and show it; returns the report's type (a warning when not physical) and the
         one-line verdict."""
-        self.run.result(success=(0, 1))  # 1: not physical, the report is written all the same
+        self.run.result(success=(0, 1, 3))  # 1: not physical, 3: physical with a caution; the report is written all the same
         try:
             with open(self.report_path) as f:
                 report = json.load(f)

@@ -1,4 +1,5 @@
-"""``retime check``: is a clip physical as captured? A linter's exit code: 0 yes, 1 no, 2 bad input."""
+"""``retime check``: is a clip physical as captured? A linter's exit code: 0 yes, 1 no, 2 bad input,
+3 physical with a caution (the frame rate or the length unit could not be confirmed)."""
 from __future__ import annotations
 
 import argparse
@@ -17,7 +18,7 @@ acceleration in flight against g and foot sliding in stance; the verdict and its
 
 
 def register(sub):
-    p = sub.add_parser("check", help="is a motion physical as captured? (exit 0 yes, 1 no, 2 bad input)",
+    p = sub.add_parser("check", help="is a motion physical as captured? (exit 0 yes, 1 no, 2 bad input, 3 yes with a caution)",
                        description="Check the physical plausibility of a motion's own timing, frame by frame.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_motion_args(p)
@@ -49,4 +50,6 @@ def run(args):
     from ..outputs import write_check
 
     write_check(result, args.report, args.plot, title=args.motion)
-    return 0 if result.physical else 1
+    if not result.physical:
+        return 1
+    return 3 if result.verdict.cautions else 0

@@ -89,11 +89,13 @@ class ClipCheck:
             "flight_share": round(float(self.flight.mean()), 4),
             "flight_g": None if self.flight_g is None else round(self.flight_g, 3),
             "flights": verdict["flights"], "time_factor": verdict["time_factor"],
-            "stance_time_factor": verdict["stance_time_factor"],
+            "stance_time_factor": verdict["stance_time_factor"], "stance_steps": verdict["stance_steps"],
             "median_foot_slide": round(float(np.median(slide)), 4) if slide.size else 0.0,
             "worst_frames": self.worst_frames(),
             "codes": self.verdict.codes,
             "causes": list(self.verdict.causes),
+            "cautions": [c.code for c in self.verdict.cautions],
+            "caution_sentences": [c.sentence for c in self.verdict.cautions],
             "notes": list(self.notes),
         }
 
@@ -119,6 +121,9 @@ class ClipCheck:
                    f"(median {s['median_residual']:.2f}, max {float(top.max()) if top.size else 0.0:.2f})")
         if s["flight_g"] is not None:
             numbers += f"; in flight the centre of mass falls at {s['flight_g']:.2f} g"
+        if self.physical and self.verdict.cautions:
+            return f"physical as captured, with a caution: {numbers}. " + " ".join(
+                f"[{c.code}] {c.sentence}." for c in self.verdict.cautions)
         if self.physical:
             return f"physical as captured: {numbers}"
         return f"NOT physical as captured: {numbers}. " + " ".join(f"[{c.code}] {c.sentence}."

@@ -6,9 +6,9 @@
   Frame Time that fits); one whose body barely falls with both feet off the floor is held up by
   something physics does not see (``held_up``).
 * **Stance** (:mod:`.stance_rate`), for a gait without a measured flight (walks, a run's short
-  flights): on one foot the contact forces must explain the body's wrench through that sole; the
-  uniform rate at which they do so best says how many times too slow the clip plays
-  (``frame_rate``), when it is clearly away from 1.
+  flights): on one foot the contact forces must explain the body's wrench through the sole corners
+  on the floor; the uniform rate at which they do so best, the median over the steps, says how many
+  times too slow the clip plays (``frame_rate``), when it is clearly away from 1.
 * **Floor and root**: feet that move at floor height while the root goes nowhere are on a
   treadmill (``treadmill``), or skate (``foot_slide``); a root that never moves is an in-place
   export (``root_locked``); a pose that never changes while the root moves was written in radians
@@ -20,6 +20,10 @@
   flight that falls at g are left to the flight's parabola: the path's low-pass smears the stance
   forces around a run's 0.1 s flights into them (a run's frames would otherwise read 17-70 %
   over). Residual left with no named cause is ``unexplained`` (hands, props, keyframed motion).
+
+**Cautions** (:data:`CAUTIONS`) are doubts that leave a clip physical: a stance rate outside its
+band on one step or on disagreeing steps (``frame_rate_unconfirmed``), and flights at g under a
+guessed, unusual length unit, which g cannot tell from a wrong rate (``units_unconfirmed``).
 
 Regions are widened by the residual, so a retiming of such a clip can look "100 % feasible" while
 its physics means little: :func:`check_source` says so, and why.
@@ -48,10 +52,12 @@ FLIGHT_G = (0.8, 1.3)  # flights falling in this range (units of g) play at thei
 # (real flights on CMU and the dev set, with the default body's masses: 0.91-1.19 g; Frame Time
 # x1.25 gives 0.59-0.76 g, x0.8 1.43-1.86 g)
 MIN_FLIGHT_S = 0.1  # fitted flight (s) below this says nothing about the frame rate
-STANCE_RATE = (0.88, 1.18)  # without a flight, a single-support rate (:mod:`.stance_rate`) in this range is the clip's own
-# (real walks and a run on CMU and the dev set: 0.92-1.13; Frame Time x0.8 gives 0.71-0.96, x1.25 1.11-1.35:
-# the cue is weaker than a flight's, so half of those variants stay inside)
-STANCE_CONTRAST = 1.2  # ... and only when its own rate needs this many times the least residual (caught variants: 1.29-2.64)
+STANCE_RATE = (0.92, 1.11)  # without a flight, a single-support rate (:mod:`.stance_rate`) in this range is the clip's own
+# (real walks and a run on CMU and the dev set: 0.94-1.08; Frame Time x0.8 gives 0.73-0.90, x1.25 1.13-1.39:
+# the edges sit between those, a few per cent from each, so a rate off by 10 % is mostly not named)
+STANCE_MIN_STEPS = 2  # ... measured on at least this many steps (a median of one step is that step's noise)
+# ... and further from 1 than its steps' spread allows (one standard error of the median): a real
+# run whose steps read 0.54-1.26 (131_03, median 0.91 +- 16 %; its flight decides it) would not be named
 LOCOMOTION_M_S = 0.35  # ... and only on a clip whose root travels this fast: a gait (walks 0.42-2.0 m/s; a samba 0.24)
 HELD_G = 0.2  # flights falling slower than this are held up, not slowed down (a rate 2.2x off)
 TREADMILL_TRAVEL = 0.3  # the root travelling less than this share of the feet's floor speed: a treadmill
@@ -72,7 +78,7 @@ class Cause:
     sentence: str
 
     def __post_init__(self):
-        assert self.code in CAUSES, self.code
+        assert self.code in CAUSES or self.code in CAUTIONS, self.code
 
 
 CAUSES = {  # code: what it means (the sentence gives the numbers)
@@ -88,6 +94,13 @@ CAUSES = {  # code: what it means (the sentence gives the numbers)
 }
 
 
+CAUTIONS = {  # code: what it means; a clip with only these is physical, but the check could not confirm it
+    "frame_rate_unconfirmed": "with no flight to measure, the single support fits another rate, but its steps disagree",
+    "units_unconfirmed": "the flights fall at g under a guessed, unusual length unit: in the nearest common unit "
+                         "the clip would play at another rate",
+}
+
+
 @dataclass
 class SourceCheck:
     physical: bool
@@ -99,6 +112,7 @@ class SourceCheck:
     slide: float = 0.0  # m/s, median horizontal speed of the foot points bearing on the floor
     judged: np.ndarray | None = None  # (F,) bool: the frames the residual judged (None: all; the rest are near flights)
     stance: StanceRate | None = None  # the single-support rate (None: not measured, as where a flight is)
+    cautions: list[Cause] = field(default_factory=list)  # doubts that leave the clip physical (:data:`CAUTIONS`)
 
     @property
     def judged_share(self) -> float:
@@ -113,8 +127,8 @@ class SourceCheck:
         return [c.code for c in self.found]
 
     def message(self) -> str:
-        if self.physical:
-            return ""
+        if self.physical:  # physics' warning: a caution is said too, as check says it
+            return "; ".join(c.sentence for c in self.cautions)
         return (f"this clip is not physical as captured: {'; '.join(self.causes)}. Feasibility is measured "
                 "against regions widened to the clip's own residual, so it means less than usual")
 
@@ -128,6 +142,8 @@ class SourceCheck:
                 "time_factor": None if f is None or f.time_factor is None else round(f.time_factor, 4),
                 "stance_time_factor": None if self.stance is None or self.stance.time_factor is None
                 else round(self.stance.time_factor, 4),
+                "stance_steps": 0 if self.stance is None else len(self.stance.steps),
+                "cautions": [c.code for c in self.cautions], "caution_sentences": [c.sentence for c in self.cautions],
                 "root_travel": round(self.travel, 4), "floor_slide": round(self.slide, 4), "judged_share": round(self.judged_share, 4)}
 
 
@@ -213,14 +229,57 @@ def flight_cause(flight: FlightGravity, fps: float, frame) -> Cause:
     return Cause("frame_rate", s)
 
 
+def _stance_steps(stance: StanceRate) -> str:
+    k, n = stance.time_factor, len(stance.steps)
+    steps = (f"the median of {n} steps, +-{np.expm1(stance.uncertainty):.0%}; {stance.steps_beyond(k)} of them "
+             f"{'above' if k > 1 else 'below'} 1") if n > 1 else "one step"
+    return (f"on one foot ({stance.seconds:.2f} s of single support) the contact forces explain the motion best "
+            f"with its time scaled by {k:.2f} ({steps})")
+
+
 def stance_cause(stance: StanceRate, fps: float) -> Cause:
     """A clip without a measured flight whose single-support frames fit another rate
     (:mod:`.stance_rate`): the wrong frame rate, named as :func:`flight_cause` names it."""
     how, times, rate_fix = _rate_parts(stance.time_factor, fps)
-    return Cause("frame_rate", f"plays {how}: {times} ({rate_fix}); with no flight to measure, on one foot "
-                               f"({stance.seconds:.2f} s of single support) the contact forces explain the motion "
-                               f"best with its time scaled by {stance.time_factor:.2f}; at its own rate the residual "
-                               f"is {stance.contrast:.2f}x that least one")
+    return Cause("frame_rate", f"plays {how}: {times} ({rate_fix}); with no flight to measure, {_stance_steps(stance)}")
+
+
+def stance_caution(stance: StanceRate, fps: float) -> Cause:
+    """A stance rate outside :data:`STANCE_RATE` on too few steps, or on steps too spread to tell it
+    from 1: the clip may play at the wrong rate; said as a caution, not a cause."""
+    how, times, _ = _rate_parts(stance.time_factor, fps)
+    return Cause("frame_rate_unconfirmed", f"frame rate unconfirmed: {_stance_steps(stance)}, too few or too spread "
+                                           f"to tell from its own rate; no flight to measure (if it plays {how}: {times})")
+
+
+def stance_finding(stance: StanceRate | None, fps: float) -> tuple[Cause | None, Cause | None]:
+    """(cause, caution) of a stance rate: ``frame_rate`` when it lies outside :data:`STANCE_RATE` on
+    :data:`STANCE_MIN_STEPS` steps or more and further from 1 than their median's uncertainty; a
+    ``frame_rate_unconfirmed`` caution when it lies outside on fewer or disagreeing steps."""
+    if stance is None or stance.time_factor is None or STANCE_RATE[0] <= stance.time_factor <= STANCE_RATE[1]:
+        return None, None
+    if len(stance.steps) >= STANCE_MIN_STEPS and abs(np.log(stance.time_factor)) > stance.uncertainty:
+        return stance_cause(stance, fps), None
+    return None, stance_caution(stance, fps)
+
+
+def unit_caution(flight: FlightGravity, fps: float, frame) -> Cause | None:
+    """Flights falling at g under a guessed length unit that is no common one confirm the unit only if
+    the frame rate is right (g scales with the unit and with the rate squared): when the nearest common
+    unit would make them fall outside :data:`FLIGHT_G`, a caution naming that unit and the rate it implies."""
+    from ..motion.frame import UNITS
+
+    if frame is None or frame.unit_confidence in KNOWN_UNIT or flight.ratio is None:
+        return None
+    name, mpu = min(UNITS.items(), key=lambda u: abs(np.log(u[1] / frame.meters_per_unit)))
+    ratio = flight.ratio * mpu / frame.meters_per_unit  # the flights' g in that unit
+    if abs(mpu / frame.meters_per_unit - 1.0) <= UNIT_SNAP or FLIGHT_G[0] <= ratio <= FLIGHT_G[1]:
+        return None
+    how, times, _ = _rate_parts(1.0 / np.sqrt(ratio), fps)
+    return Cause("units_unconfirmed", f"length unit unconfirmed: read as 1 unit = {frame.meters_per_unit:.4g} m "
+                                      f"({frame.unit_confidence}), under which the flights fall at {flight.ratio:.2f} g; "
+                                      f"in the nearest common unit, {name}, they would fall at {ratio:.2f} g and the "
+                                      f"clip would play {how} ({times}): give --units to confirm")
 
 
 def _near(mask, frames: int) -> np.ndarray:
@@ -327,9 +386,11 @@ def check_source(motion, terms, regions) -> SourceCheck:
     # without a flight the single-support frames are the rate's only measure (flights stay primary)
     # (calibrated on walks and runs, where the body vaults over one foot at a time: not on dances)
     stance = stance_rate(terms) if not found and not measured and travel >= LOCOMOTION_M_S else None
-    if stance is not None and stance.time_factor is not None and stance.contrast >= STANCE_CONTRAST and \
-            not STANCE_RATE[0] <= stance.time_factor <= STANCE_RATE[1]:
-        found.append(stance_cause(stance, fps))
+    cause, caution = stance_finding(stance, fps)
+    found += [cause] if cause is not None else []
+    cautions = [caution] if caution is not None else []
+    if not found and ballistic:
+        cautions += [c for c in [unit_caution(flight, fps, frame)] if c is not None]
     # frames within two smoothing widths of a flight get the stance forces around it smeared into them:
     # there the flight's parabola judges the clip, not the residual
     # (flights too short to fit, as a run's may be, are not contradicted either)
@@ -337,4 +398,4 @@ def check_source(motion, terms, regions) -> SourceCheck:
     off, med = _over(res[judged])
     if off > MAX_OFF_SHARE and not found:
         found.append(_residual_cause(off, med, frame, air, ballistic))
-    return SourceCheck(not found, off, med, found, flight, travel, slide, judged, stance)
+    return SourceCheck(not found, off, med, found, flight, travel, slide, judged, stance, cautions)
