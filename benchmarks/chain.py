@@ -5,7 +5,7 @@ Each link is a uniform rod of ``link_length`` (0.1 m) and ``link_mass`` (1 kg) w
 The path is smooth and deterministic: joint k's rotation vector is
 ``amplitude * sin(2 pi f_a t + phase)`` per axis, with frequencies between 0.3 and 1.2 Hz and phases
 drawn from ``seed``; it is sampled at ``fps`` and then goes through the same spline path and
-dynamics code as a character (:mod:`retime.physics.path`, :mod:`retime.physics.tree`). The chains
+dynamics code as a character (:mod:`retime.physics.model.path`, :mod:`retime.physics.model.tree`). The chains
 have a fixed base, no contacts and no unactuated rows (``n_root == 0``); torque limits come from the
 original motion like a character's (margin 1.5, floor 2 N m).
 
@@ -19,9 +19,9 @@ import time
 
 import numpy as np
 
-from retime.physics.dynamics import DynamicsTerms, torque_limits
-from retime.physics.path import sample_times
-from retime.physics.tree import SPHERICAL, TreeModel
+from retime.physics.model.dynamics import DynamicsTerms, torque_limits
+from retime.physics.model.path import sample_times
+from retime.physics.model.tree import SPHERICAL, TreeModel
 
 CASES = {"C10": 10, "C100": 100, "C1000": 1000}
 

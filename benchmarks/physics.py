@@ -3,7 +3,7 @@
 Columns, milliseconds per source frame (wall clock after JIT warm-up, best of --repeat runs; CPU time
 of this process in the JSON as *_cpu_ms, which a busy machine disturbs less):
   Force     path dynamics: derivatives, per-body Newton-Euler terms, projection to a, b, c and the
-            contact basis (retime.physics.dynamics / chain)
+            contact basis (retime.physics.model.dynamics / chain)
   Feasible  feasible regions: residual budgets, HiGHS + parametric walk, centre LPs (regions, forces)
   Bake      the six coefficients per frame and wedge (objective.bake)
   Obj       one evaluation of the baked objective (4 samples per source frame), at the original
@@ -37,10 +37,10 @@ import numpy as np
 
 from retime.data import bundled_path
 from retime.motion import load_motion
-from retime.physics import objective as O
+from retime.physics.timing import objective as O
 from retime.physics.api import DEFAULT_SMOOTHING, make_problem
-from retime.physics.globalstart import global_start
-from retime.physics.optimize import RetimingSession
+from retime.physics.timing.globalstart import global_start
+from retime.physics.timing.optimize import RetimingSession
 from retime.physics.regions import RegionOptions, compute_regions
 from retime.warp import snap_duration
 
@@ -78,7 +78,7 @@ def _eval_time(fn, repeat, min_seconds=0.3):
 
 def _terms_fn(case):
     if case == "16_16":
-        from retime.physics.dynamics import dynamics_terms
+        from retime.physics.model.dynamics import dynamics_terms
 
         m = load_motion(bundled_path("16_16.amc"))
         return (lambda: dynamics_terms(m, smoothing=DEFAULT_SMOOTHING)), m.n_frames

@@ -3,7 +3,7 @@
 For every clip: a BVH of it as converted, and a float32 copy (every channel of the motion section
 rounded to float32, written, read back); both retimed at ``--scale`` (default 0.5). Prints how far the
 two timing curves differ (source frames, over the output frames), the optimizer's iterations,
-whether its stopping test was met, the KKT residual (:func:`retime.physics.optimize.kkt_residual`),
+whether its stopping test was met, the KKT residual (:func:`retime.physics.timing.optimize.kkt_residual`),
 both final objectives, how much the float32 copy's objective differs from the original's at the same
 timing (the original's answer; when the two problems' splines match), and how many spline
 coefficients the answer sits on a **kink** of the objective for (the one-sided derivatives along the
@@ -37,8 +37,8 @@ from retime.motion import load_motion
 from retime.motion.files import save_motion
 from retime.errors import RetimeError
 from retime.physics.api import make_problem, physics_warp
-from retime.physics.objective import evaluate_c
-from retime.physics.optimize import solve
+from retime.physics.timing.objective import evaluate_c
+from retime.physics.timing.optimize import solve
 
 BUNDLED = Path(__file__).resolve().parents[1] / "src" / "retime" / "data" / "cmu"
 
@@ -96,7 +96,7 @@ def today(result, motion, duration):
     are measured alike), today's answer by L-BFGS from its own grid start (before issue 24)."""
     import dataclasses
 
-    from retime.physics.objective import evaluate
+    from retime.physics.timing.objective import evaluate
 
     old = dataclasses.replace(result.objective, arrays=result.objective.arrays._replace(blend=0.0))
     pr = make_problem(old, motion.duration, duration)

@@ -3,7 +3,7 @@
 For every clip: at half its duration, the flight's playback speed (the longest stretch with no foot
 down, as the demo finds it) and the report's ``feasible_fraction`` (wanted: flight 0.8-1.3x,
 feasible >= 0.9); at a quarter of gravity with free duration, the same (wanted: flight 0.42-0.6x,
-feasible >= 0.9); and the clip's least physical duration (:mod:`retime.physics.fastest`). Both
+feasible >= 0.9); and the clip's least physical duration (:mod:`retime.physics.timing.fastest`). Both
 optimizer starts can be compared with ``--start``.
 
     python3 benchmarks/physics_jumps.py                       # the jumps in ../shared/data/cmu

@@ -15,7 +15,7 @@ import numpy as np
 from retime.data import bundled_path
 from retime.motion import load_motion, save_bvh
 from retime.physics.api import DEFAULT_SMOOTHING, physics_warp
-from retime.physics.dynamics import dynamics_terms
+from retime.physics.model.dynamics import dynamics_terms
 from retime.physics.report import flight_speeds, write_report
 from retime.warp import apply_timing
 

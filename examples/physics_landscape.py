@@ -15,7 +15,7 @@ import numpy as np
 
 from physics_common import load, parse_args
 from retime.physics.api import make_problem, prepare
-from retime.physics.optimize import RetimingSession
+from retime.physics.timing.optimize import RetimingSession
 from retime.viz.plot import save_figure
 from retime.warp import snap_duration
 

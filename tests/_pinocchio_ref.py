@@ -2,7 +2,7 @@
 against (Pinocchio is a test dependency only)."""
 import numpy as np
 
-from retime.physics.tree import FIXED, FREE, JOINT_DOFS, TreeModel
+from retime.physics.model.tree import FIXED, FREE, JOINT_DOFS, TreeModel
 
 
 def to_pinocchio(tree: TreeModel, gravity=(0.0, -9.81, 0.0)):

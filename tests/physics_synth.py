@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import nnls
 
-from retime.physics.contact_basis import ContactBasis
-from retime.physics.dynamics import PathDynamics
+from retime.physics.model.contact_basis import ContactBasis
+from retime.physics.model.dynamics import PathDynamics
 
 G = 9.81
 
@@ -181,7 +181,7 @@ def free_fall(g_source=G, g_new=G, mass=60.0, fps=120.0, n=40, vel=(1.0, 2.0, 0.
 def quarter_gravity_problem():
     """(pd, regions, baked objective) of a rigid jump recorded under g and retimed under g/4 with
     the API's default weights: its flight must play at sqrt(1/4)."""
-    from retime.physics import objective as O
+    from retime.physics.timing import objective as O
     from retime.physics import regions as R
 
     ref = rigid_jump()

@@ -78,7 +78,7 @@ def test_all_three_methods_ran(demo):
 def test_feasible_fraction_agrees_with_the_physics_report(demo):
     """Feasibility of the physics curve as any curve (p', p'' by differences of its samples) gives the
     report's number (p', p'' of the spline itself): two computations of the derivatives, one test."""
-    from retime.physics.feasibility import curve_feasibility
+    from retime.physics.regions.feasibility import curve_feasibility
 
     phys = next(m for m in demo.methods if m.name == "physics")
     if phys.physics is None:

@@ -35,7 +35,7 @@ def test_strip_agrees_with_the_curve_tested_as_any_curve(session):
     """The strip's feasible frames (shade 1) are the physics spline's frames in their region; the same
     test on the curve alone (p', p'' by differences of its samples, as the demo tests any curve)
     agrees on nearly every frame, and the fraction shown is the strip's."""
-    from retime.physics.feasibility import curve_feasibility
+    from retime.physics.regions.feasibility import curve_feasibility
 
     sol = session.solution
     feas = np.asarray(sol.feasibility)

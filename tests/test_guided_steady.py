@@ -84,7 +84,7 @@ def test_blend_zero_is_the_spline_warp(jump):
 
 
 def test_blend_moves_the_flight_speed_monotonically(jump):
-    from retime.physics.contacts import foot_contacts
+    from retime.physics.model.contacts import foot_contacts
     from retime.phases import longest_flight
 
     a, b = longest_flight(foot_contacts(jump), np.arange(jump.n_frames) / jump.fps)

@@ -1,6 +1,6 @@
 """Each compiled hot kernel against its plain NumPy twin, on random and on real inputs: polygon
-closest point and distance, half-plane clipping (physics/polygon.py), the simplex phase 2 and
-shadow-vertex walk (physics/simplex.py) and the objective's evaluation (physics/objective.py).
+closest point and distance, half-plane clipping (physics/regions/polygon.py), the simplex phase 2 and
+shadow-vertex walk (physics/regions/simplex.py) and the objective's evaluation (physics/timing/objective.py).
 The twins are written without numba and without the kernels' bookkeeping (no B^-1 updates, no
 wedge hints, bisection for Newton), so an error in either side shows as a mismatch."""
 from __future__ import annotations
@@ -17,14 +17,14 @@ import physics_synth as ps  # noqa: E402
 
 from retime.data import bundled_path  # noqa: E402
 from retime.motion import load_motion  # noqa: E402
-from retime.physics import objective as O  # noqa: E402
-from retime.physics import polygon as P  # noqa: E402
-from retime.physics import simplex as S  # noqa: E402
-from retime.physics.forces import force_weights, solve_center  # noqa: E402
-from retime.physics.frame_region import _frame_lp, _lp_rows  # noqa: E402
-from retime.physics.highs_lp import HighsPool  # noqa: E402
+from retime.physics.timing import objective as O  # noqa: E402
+from retime.physics.regions import polygon as P  # noqa: E402
+from retime.physics.regions import simplex as S  # noqa: E402
+from retime.physics.regions.forces import force_weights, solve_center  # noqa: E402
+from retime.physics.regions.frame_region import _frame_lp, _lp_rows  # noqa: E402
+from retime.physics.regions.highs_lp import HighsPool  # noqa: E402
 from retime.physics.regions import RegionOptions, base_bounds  # noqa: E402
-from retime.physics.spline import TimingSpline  # noqa: E402
+from retime.physics.timing.spline import TimingSpline  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -172,7 +172,7 @@ def _random_lps(rng, count):
         A = rng.normal(size=(m, 2 + k))
         x0 = np.r_[rng.uniform(-5, 5), rng.uniform(0.5, 8), rng.uniform(0, 2, k)]
         r = A @ x0
-        from retime.physics.highs_lp import FrameLP
+        from retime.physics.regions.highs_lp import FrameLP
 
         lp = FrameLP(A, r - rng.uniform(0.1, 3, m), r + rng.uniform(0.1, 3, m), 20.0, 30.0, pool)
         lp.solve_at(x0[0], x0[1], rng.uniform(0.5, 2, k))

@@ -10,7 +10,7 @@ from retime.cli import main
 from retime.data import bundled_path
 from retime.motion import load_motion
 from retime.physics.api import DEFAULT_SMOOTHING, physics_warp
-from retime.physics.dynamics import dynamics_terms
+from retime.physics.model.dynamics import dynamics_terms
 from retime.physics.report import flight_speeds
 from retime.warp import TimingCurve
 

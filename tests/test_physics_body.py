@@ -5,8 +5,8 @@ import pytest
 from retime.data import bundled_path
 from retime.errors import FormatError, RetimeError
 from retime.motion import Skeleton, load_motion
-from retime.physics.body import (DE_LEVA, STRENGTH, default_body, find_feet, read_body, world_frames, write_body)
-from retime.physics.dynamics import dynamics_terms
+from retime.physics.model.body import (DE_LEVA, STRENGTH, default_body, find_feet, read_body, world_frames, write_body)
+from retime.physics.model.dynamics import dynamics_terms
 
 
 def test_de_leva_segments_on_cmu(jump):
@@ -40,7 +40,7 @@ def test_soles_lie_flat_under_the_feet(clip, feet, level):
     assert (left.joint, left.toe_joint) == feet
     pos, R = world_frames(motion)
     sk = motion.skeleton
-    from retime.physics.contacts import corner_positions
+    from retime.physics.model.contacts import corner_positions
 
     x = corner_positions(body, sk, R, pos)  # (F, 8, 3)
     # while a foot is planted its four corners are level and below the ankle

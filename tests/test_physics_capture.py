@@ -6,8 +6,8 @@ import numpy as np
 
 from retime.motion.quat import slerp
 from retime.physics import regions as R
-from retime.physics.polygon import polygon_area
-from retime.physics.dynamics import NOISE_CAP, bind_pose_frames, dynamics_terms
+from retime.physics.regions.polygon import polygon_area
+from retime.physics.model.dynamics import NOISE_CAP, bind_pose_frames, dynamics_terms
 
 
 def test_noise_band_is_the_local_rms_of_the_difference_of_two_low_passes(jump):

@@ -5,10 +5,10 @@ import pytest
 from retime.data import bundled_path
 from retime.errors import FormatError, RetimeError
 from retime.motion import load_motion
-from retime.physics.body import default_body
-from retime.physics.contacts import (CONTACT_POINTS, at_samples, detect_contacts, friction_edges, load_contacts,
+from retime.physics.model.body import default_body
+from retime.physics.model.contacts import (CONTACT_POINTS, at_samples, detect_contacts, friction_edges, load_contacts,
                                      read_contacts, write_contacts)
-from retime.physics.dynamics import dynamics_terms
+from retime.physics.model.dynamics import dynamics_terms
 
 
 def runs(state):

@@ -6,13 +6,13 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from retime.physics.body import default_body
+from retime.physics.model.body import default_body
 from chain import chain_terms, chain_tree  # benchmarks/chain.py: the Fig. 12 chains
-from retime.physics.dynamics import dynamics_terms, path_dynamics, reference_forces
-from retime.physics.path import path_samples
+from retime.physics.model.dynamics import dynamics_terms, path_dynamics, reference_forces
+from retime.physics.model.path import path_samples
 from _pinocchio_ref import pinocchio_state, to_pinocchio
 from retime.motion.quat import quat_to_matrix
-from retime.physics.tree import (FIXED, FREE, SPHERICAL, TreeModel, generalized_forces, kinematics,
+from retime.physics.model.tree import (FIXED, FREE, SPHERICAL, TreeModel, generalized_forces, kinematics,
                                  points_jacobian_transpose, project,
                                  wrenches)
 
@@ -393,7 +393,7 @@ def test_noise_band_is_finite_beside_large_differences():
     warned 'invalid value encountered in sqrt' (an OpenNI/Kinect file) and was NaN."""
     from types import SimpleNamespace
 
-    from retime.physics.dynamics import DynamicsTerms
+    from retime.physics.model.dynamics import DynamicsTerms
 
     rng = np.random.default_rng(0)
     n, nr = 3000, 6

@@ -1,4 +1,4 @@
-"""The time-optimal physical timing (retime.physics.fastest): known answers."""
+"""The time-optimal physical timing (retime.physics.timing.fastest): known answers."""
 from __future__ import annotations
 
 import os
@@ -12,7 +12,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 import physics_synth as ps  # noqa: E402
 
 from retime.physics import regions as R  # noqa: E402
-from retime.physics.fastest import fastest_timing  # noqa: E402
+from retime.physics.timing.fastest import fastest_timing  # noqa: E402
 
 G = 9.81
 

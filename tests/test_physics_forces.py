@@ -11,7 +11,7 @@ from scipy.optimize import linprog
 sys.path.insert(0, os.path.dirname(__file__))
 import physics_synth as ps  # noqa: E402
 
-from retime.physics import forces as F  # noqa: E402
+from retime.physics.regions import forces as F  # noqa: E402
 from retime.physics import regions as R  # noqa: E402
 
 

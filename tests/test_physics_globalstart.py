@@ -1,4 +1,4 @@
-"""The grid-optimal start of the timing spline (retime.physics.globalstart)."""
+"""The grid-optimal start of the timing spline (retime.physics.timing.globalstart)."""
 from __future__ import annotations
 
 import itertools
@@ -11,8 +11,8 @@ import pytest
 sys.path.insert(0, os.path.dirname(__file__))
 import physics_synth as ps  # noqa: E402
 
-from retime.physics import objective as O  # noqa: E402
-from retime.physics.globalstart import _shortest, global_start, speed_levels  # noqa: E402
+from retime.physics.timing import objective as O  # noqa: E402
+from retime.physics.timing.globalstart import _shortest, global_start, speed_levels  # noqa: E402
 
 G = 9.81
 
@@ -78,7 +78,7 @@ def test_fixed_duration_is_met_by_the_price_of_time(quarter_jump, scale):
 
 
 def test_softened_frames_pay_less_for_the_same_violation(quarter_jump):
-    from retime.physics.globalstart import soften
+    from retime.physics.timing.globalstart import soften
 
     pd, rs, obj = quarter_jump
     i = int(np.flatnonzero(pd.flight)[10])

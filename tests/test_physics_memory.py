@@ -4,11 +4,11 @@ arrays of bounded width."""
 import numpy as np
 import pytest
 
-from retime.physics import dynamics
-from retime.physics.contact_basis import ComputedContactBasis, ContactBasis
-from retime.physics.contacts import compact_contact_basis, corner_jacobians, friction_edges
-from retime.physics.dynamics import DynamicsTerms, PathDynamics, dynamics_terms
-from retime.physics.tree import kinematics, project, wrenches
+from retime.physics.model import dynamics
+from retime.physics.model.contact_basis import ComputedContactBasis, ContactBasis
+from retime.physics.model.contacts import compact_contact_basis, corner_jacobians, friction_edges
+from retime.physics.model.dynamics import DynamicsTerms, PathDynamics, dynamics_terms
+from retime.physics.model.tree import kinematics, project, wrenches
 
 
 @pytest.fixture(scope="module")

@@ -12,9 +12,9 @@ sys.path.insert(0, os.path.dirname(__file__))
 import physics_synth as ps  # noqa: E402
 
 from retime.physics.api import make_problem  # noqa: E402
-from retime.physics.newton import BAND, BandedCoordinates, BandedObjective, banded_hessian, \
+from retime.physics.timing.newton import BAND, BandedCoordinates, BandedObjective, banded_hessian, \
     difference_steps  # noqa: E402
-from retime.physics.optimize import KKT_TOL, solve  # noqa: E402
+from retime.physics.timing.optimize import KKT_TOL, solve  # noqa: E402
 
 
 @pytest.fixture(scope="module")

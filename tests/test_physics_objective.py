@@ -11,11 +11,11 @@ import pytest
 sys.path.insert(0, os.path.dirname(__file__))
 import physics_synth as ps  # noqa: E402
 
-from retime.physics import forces as F  # noqa: E402
-from retime.physics import objective as O  # noqa: E402
+from retime.physics.regions import forces as F  # noqa: E402
+from retime.physics.timing import objective as O  # noqa: E402
 from retime.physics import regions as R  # noqa: E402
-from retime.physics.polygon import polygon_distance  # noqa: E402
-from retime.physics.spline import TimingSpline  # noqa: E402
+from retime.physics.regions.polygon import polygon_distance  # noqa: E402
+from retime.physics.timing.spline import TimingSpline  # noqa: E402
 
 G = 9.81
 

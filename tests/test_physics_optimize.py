@@ -12,8 +12,8 @@ sys.path.insert(0, os.path.dirname(__file__))
 import physics_synth as ps  # noqa: E402
 
 from retime.physics.api import make_problem  # noqa: E402
-from retime.physics.optimize import RetimingSession, solve  # noqa: E402
-from retime.physics.spline import TimingSpline  # noqa: E402
+from retime.physics.timing.optimize import RetimingSession, solve  # noqa: E402
+from retime.physics.timing.spline import TimingSpline  # noqa: E402
 
 G = 9.81
 
@@ -175,7 +175,7 @@ def test_kkt_residual_is_the_relative_projected_gradient(quarter_jump, keytimes)
     """The optimizer block's residual: at the start and at the answer it agrees with finite differences
     of the objective; with keytimes it is the Lagrangian's (the objective's own gradient does not
     vanish at a constrained optimum)."""
-    from retime.physics.optimize import kkt_residual
+    from retime.physics.timing.optimize import kkt_residual
 
     pd, rs, obj = quarter_jump
     S = pd.times[-1]
@@ -222,7 +222,7 @@ def test_spline_fit_is_the_dense_least_squares_solution():
     """The banded normal-equation solve of TimingSpline.fit against NumPy's dense lstsq."""
     from scipy.interpolate import BSpline
 
-    from retime.physics.spline import banded_least_squares
+    from retime.physics.timing.spline import banded_least_squares
 
     rng = np.random.default_rng(3)
     for n in (5, 60, 400):

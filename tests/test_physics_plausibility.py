@@ -5,8 +5,8 @@ import pytest
 from retime.data import bundled_path
 from retime.motion import load_motion, save_bvh
 from retime.physics.api import physics_warp
-from retime.physics.contacts import detect_contacts
-from retime.physics.body import default_body
+from retime.physics.model.contacts import detect_contacts
+from retime.physics.model.body import default_body
 from retime.motion.conform import conform
 
 

@@ -14,8 +14,8 @@ import physics_synth as ps  # noqa: E402
 
 from retime.errors import RetimeError  # noqa: E402
 from retime.physics import regions as R  # noqa: E402
-from retime.physics.frame_region import frame_region  # noqa: E402
-from retime.physics.polygon import closest_point, polygon_area, polygon_distance  # noqa: E402
+from retime.physics.regions.frame_region import frame_region  # noqa: E402
+from retime.physics.regions.polygon import closest_point, polygon_area, polygon_distance  # noqa: E402
 
 G = 9.81
 

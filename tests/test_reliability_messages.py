@@ -91,7 +91,7 @@ def test_a_skeleton_without_legs_is_refused_before_the_dynamics(tmp_path, monkey
     """H2: a 3,000-joint chain took 5 min 48 s and 2.9 GB to be refused by check (physics still took 81 s
     at 2,000 joints: the conform's dummy-root walk); U1: the refusal names the file. Every door to the
     dynamics refuses it before the conform."""
-    import retime.physics.dynamics as dynamics
+    import retime.physics.model.dynamics as dynamics
 
     monkeypatch.setattr(dynamics, "conformed", lambda *a, **k: pytest.fail("the conform ran"))
     chain = _chain_bvh(tmp_path / "chain.bvh", 6)
@@ -103,7 +103,7 @@ def test_a_skeleton_without_legs_is_refused_before_the_dynamics(tmp_path, monkey
 
 
 def test_check_clip_refuses_a_skeleton_without_legs_before_the_dynamics(tmp_path, monkeypatch):
-    import retime.physics.dynamics as dynamics
+    import retime.physics.model.dynamics as dynamics
     from retime.physics.check import check_clip
 
     monkeypatch.setattr(dynamics, "conformed", lambda *a, **k: pytest.fail("the conform ran"))
@@ -123,7 +123,7 @@ def test_subtree_sizes_match_the_descendants(short_bvh):
 
 
 def test_a_bone_stretch_names_the_file(short_bvh):
-    from retime.physics.dynamics import conformed
+    from retime.physics.model.dynamics import conformed
 
     motion = load_motion(short_bvh)
     stretched = motion.replace(translations=motion.translations.copy())

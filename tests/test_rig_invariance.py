@@ -284,7 +284,7 @@ BUNDLED_RIGS = ["16_06.amc", "131_01.bvh"]  # CMU's ASF skeleton and a cgspeed B
 
 
 def _body(motion):
-    from retime.physics.body import default_body
+    from retime.physics.model.body import default_body
 
     m = conform(motion).motion
     return default_body(m.skeleton, motion=m)

@@ -16,7 +16,7 @@ from retime.data import bundled_path
 from retime.motion import load_motion
 from retime.motion import mistakes as M
 from retime.physics.check import check_clip
-from retime.physics.dynamics import RIDGE, dynamics_terms
+from retime.physics.model.dynamics import RIDGE, dynamics_terms
 from retime.physics.plausibility import STANCE_RATE
 from retime.physics.stance_rate import RATES, SOLE_ON_FLOOR_M, _bearing_columns, _residuals, sole_on_floor, stance_rate
 
@@ -99,8 +99,8 @@ def _pendulum_on_one_foot(k: float, fps: float = 100.0, seconds: float = 0.6):
     from types import SimpleNamespace
 
     from retime.physics.constants import G
-    from retime.physics.contacts import friction_edges
-    from retime.physics.dynamics import PathDynamics
+    from retime.physics.model.contacts import friction_edges
+    from retime.physics.model.dynamics import PathDynamics
 
     m, h, p = 70.0, 0.9, np.array([0.0, 0.0, 0.1])
     w = np.sqrt(G / h)

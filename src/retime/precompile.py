@@ -66,7 +66,7 @@ def _threaded_objective():
     passes the same types."""
     import numba
 
-    from .physics import objective
+    from .physics.timing import objective
 
     for sig in objective._evaluate.signatures:
         objective._evaluate_par.compile((numba.types.int64,) + tuple(sig))

@@ -116,7 +116,7 @@ def run(args):
     retimed = write_retiming("physics", m, answer, args.output, args.warp, args.report, source=args.motion)
     said_written(args, m, retimed)
     if args.write_body:
-        from ..physics.body import write_body
+        from ..physics.model.body import write_body
 
         terms = result.terms
         write_body(terms.body, args.write_body, torque_limits=terms.joint_torque_limits(),

@@ -10,24 +10,28 @@ Symbols, one meaning each, everywhere in this package (McCann et al.'s notation)
 =========  ===================================================================================
 t          output time (s), 0..T; T the output duration
 s          source time (s), 0..S; S the source duration
-p          the timing: s = p(t) (a :class:`retime.warp.TimingCurve`; here a :class:`.spline.TimingSpline`)
+p          the timing: s = p(t) (a :class:`retime.warp.TimingCurve`; here a :class:`.timing.spline.TimingSpline`)
 p'         playback speed ds/dt (1: as captured)
 p''        playback acceleration d2s/dt2
 u, v       the timing at a frame as a point of the plane: u = p'', v = p'^2
 q          generalized coordinates of the body; q', q'' their derivatives in *source* time
-a, b, c    path dynamics per source frame (:mod:`.dynamics`): the generalized forces a timing needs
+a, b, c    path dynamics per source frame (:mod:`.model.dynamics`): the generalized forces a timing needs
            are tau = a u + b v + c - N lambda (a: the q' term, b: the q'' and velocity term, c: gravity)
 N          the contact map J^T P (Eq. 11): one column per basis force of the friction pyramids
 lambda     basis force magnitudes (>= 0), one per column of N (``lam`` in code)
 region     the (u, v) for which some lambda keeps every tau within its bounds: a convex polygon per
-           frame (:mod:`.regions`); *feasible* = inside it up to :data:`.feasibility.IN_REGION_TOL`
+           frame (:mod:`.regions`); *feasible* = inside it up to :data:`.regions.feasibility.IN_REGION_TOL`
 =========  ===================================================================================
 
-Modules, in the order the method runs: :mod:`.body` (segments, soles, limits), :mod:`.contacts`
-(when each foot touches the floor), :mod:`.path` and :mod:`.tree` (derivatives and rigid-body
-kernels), :mod:`.dynamics` (a, b, c, N per frame), :mod:`.regions` (feasible polygons),
-:mod:`.objective` (Eq. 14 baked per frame), :mod:`.globalstart` and :mod:`.optimize` (the timing
-spline, :mod:`.spline`), :mod:`.feasibility` and :mod:`.report` (what the result says);
+:mod:`.api`, :mod:`.method`, :mod:`.check` and :mod:`.report` are the front, over three wings:
+:mod:`.model` (the body and its path dynamics), :mod:`.regions` (the feasible regions: the region
+set is the package itself) and :mod:`.timing` (the timing spline and its optimization).
+
+Modules, in the order the method runs: :mod:`.model.body` (segments, soles, limits), :mod:`.model.contacts`
+(when each foot touches the floor), :mod:`.model.path` and :mod:`.model.tree` (derivatives and rigid-body
+kernels), :mod:`.model.dynamics` (a, b, c, N per frame), :mod:`.regions` (feasible polygons),
+:mod:`.timing.objective` (Eq. 14 baked per frame), :mod:`.timing.globalstart` and :mod:`.timing.optimize` (the timing
+spline, :mod:`.timing.spline`), :mod:`.regions.feasibility` and :mod:`.report` (what the result says);
 :mod:`.api` runs them in order and :mod:`.method` puts them behind the contract. :mod:`.check`
 (with :mod:`.plausibility` and :mod:`.check_forces`: the feet's forces and the centre of mass per
 frame) is ``retime check``.

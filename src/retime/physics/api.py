@@ -3,10 +3,10 @@
     result = physics_warp(motion, duration=None, gravity=None, objective="match")  # gravity: down
     retimed = apply_timing(motion, result.curve)
 
-Pipeline: path dynamics of the motion (:mod:`retime.physics.dynamics`, computed once; gravity and mass
+Pipeline: path dynamics of the motion (:mod:`retime.physics.model.dynamics`, computed once; gravity and mass
 changes recombine them), feasible regions and contact forces per frame (:mod:`.regions`,
-:mod:`.forces`), the objective of Eq. 14 baked per frame (:mod:`.objective`), and the timing spline
-optimized (:mod:`.optimize`) from the grid optimum of the same objective (:mod:`.globalstart`; the
+:mod:`.regions.forces`), the objective of Eq. 14 baked per frame (:mod:`.timing.objective`), and the timing spline
+optimized (:mod:`.timing.optimize`) from the grid optimum of the same objective (:mod:`.timing.globalstart`; the
 paper's uniform timing with ``start="uniform"``, the keytimes' piecewise-linear timing with keytimes). ``result.session`` continues interactively.
 
 Defaults, and why (measured on CMU jumps 16_06, 16_03, 13_11, 118_26; see the tests and README):
@@ -17,9 +17,9 @@ Defaults, and why (measured on CMU jumps 16_06, 16_03, 13_11, 118_26; see the te
   distance (``penalty = "l2"``, ``metric = "plane"``) spreads an unavoidable violation (halving a
   jump) thinly over many frames; the exact penalty keeps it on the few frames where it costs the
   least force, so most frames stay feasible (16_06 at half duration with clip-only torque limits:
-  78% -> 94% of frames feasible; 100% with the strength floor of :mod:`.body`).
+  78% -> 94% of frames feasible; 100% with the strength floor of :mod:`.model.body`).
 * ``beta = 0.1``: torques (normalized by the original's RMS torque) choose among physical timings;
-  ``excess = True`` measures them from what any timing could reach (see :mod:`.objective`).
+  ``excess = True`` measures them from what any timing could reach (see :mod:`.timing.objective`).
 * ``gamma = 0.03``: a weak pull of the playback speed towards 1 (``gamma * (p' + 1/p' - 2)`` per
   source second, symmetric in slowing down and speeding up), so frames that physics leaves free keep
   their timing and never stall; stronger values fight the speed-ups a shorter duration needs
@@ -27,15 +27,15 @@ Defaults, and why (measured on CMU jumps 16_06, 16_03, 13_11, 118_26; see the te
 * control points every ``knot_spacing`` = 0.05 s of source time; 4 objective samples per source frame.
 * ``smoothing = 0.05`` s: the path is low-passed (Gaussian) for the dynamics. The timing spline cannot
   follow anything faster, and twice-differentiated capture noise would otherwise decide how fast a
-  still stance may be played (:data:`.constants.DEFAULT_SMOOTHING`, used by :mod:`.dynamics` too).
-* the **capture-noise band** (:data:`.dynamics.NOISE_BAND` = 0.1 s, :data:`.dynamics.NOISE_CAP` = 2 %
+  still stance may be played (:data:`.constants.DEFAULT_SMOOTHING`, used by :mod:`.model.dynamics` too).
+* the **capture-noise band** (:data:`.model.dynamics.NOISE_BAND` = 0.1 s, :data:`.model.dynamics.NOISE_CAP` = 2 %
   of body weight): in stance the root rows may also use the local RMS of b(0.05 s) - b(0.1 s) times
   p'^2, what the capture's accelerations are uncertain by (see :mod:`.regions`). Without it, the sway and marker
   noise of a still stance, 16- to 25-fold at 4-5x speed, decided how fast a stance could be played:
-  the least physical duration (:mod:`.fastest`) of 16_05 was 1.30 s, more than its half duration
+  the least physical duration (:mod:`.timing.fastest`) of 16_05 was 1.30 s, more than its half duration
   1.23 s; with it 1.20 s.
 * ``start = "global"``: the spline starts from the grid optimum of the same objective
-  (:mod:`.globalstart`, dynamic programming over source frame x speed, which puts a violation that
+  (:mod:`.timing.globalstart`, dynamic programming over source frame x speed, which puts a violation that
   cannot be avoided on few output frames) instead of the uniform timing; ``"uniform"`` is the paper's
   start. With keytimes the start is their piecewise-linear timing.
 
@@ -52,16 +52,16 @@ from ..errors import RetimeError
 from ..motion.frame import up_vector
 from ..warp import TimingCurve, snap_duration
 from .constants import DEFAULT_SMOOTHING, MAX_GRAVITY, STANDARD_GRAVITY, G
-from .fastest import fastest_timing
-from .globalstart import global_start, soften
+from .timing.fastest import fastest_timing
+from .timing.globalstart import global_start, soften
 from .method import Settings, check_masses, file_gravity
-from .objective import BakedObjective, bake, target_torques
+from .timing.objective import BakedObjective, bake, target_torques
 from .plausibility import check_source
 from ..warp import check_keytimes
-from .optimize import Problem, RetimingSession, SolveInfo
+from .timing.optimize import Problem, RetimingSession, SolveInfo
 from .regions import RegionOptions, RegionSet, compute_regions
 from .report import build_report
-from .spline import TimingSpline
+from .timing.spline import TimingSpline
 
 
 
@@ -88,8 +88,8 @@ class LiveSession(RetimingSession):
         self.shared = shared
 
     def feasibility(self, fps):
-        """Per output frame at ``fps``: :func:`.feasibility.spline_feasibility` of the current spline."""
-        from .feasibility import spline_feasibility
+        """Per output frame at ``fps``: :func:`.regions.feasibility.spline_feasibility` of the current spline."""
+        from .regions.feasibility import spline_feasibility
 
         return spline_feasibility(self.spline, self.shared.dynamics, self.shared.regions, fps)
 
@@ -133,7 +133,7 @@ def prepare_regions(motion, gravity=STANDARD_GRAVITY, mass_factors=None, body=No
                     smoothing=DEFAULT_SMOOTHING, cancel=None):
     """Dynamics under the original and the asked physics (pd0, pd) and the feasible regions:
     (terms, pd0, pd, regions). What ``retime check`` needs; :func:`prepare` adds the objective."""
-    from .dynamics import dynamics_terms
+    from .model.dynamics import dynamics_terms
 
     timings = {} if timings is None else timings
     t0 = time.perf_counter()
@@ -160,7 +160,7 @@ def make_problem(obj, source_duration, duration=None, keytimes=(), knot_spacing=
     """The spline problem: knots every ``knot_spacing`` (output time, uniform), the duration (None:
     free) and keytimes; None for ``knot_spacing``, ``w_min``, ``w_max``, ``start``: :class:`.method.Settings`'.
     ``start="global"`` (no keytimes) starts from the grid optimum
-    (:mod:`.globalstart`) and softens the frames it gives up in the problem's objective, for this and
+    (:mod:`.timing.globalstart`) and softens the frames it gives up in the problem's objective, for this and
     every later re-convergence of a session built on it; ``"uniform"`` is the paper's start; keytimes
     start from their piecewise-linear timing."""
     d = Settings()

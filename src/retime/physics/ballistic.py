@@ -21,7 +21,7 @@ import numpy as np
 
 from ..phases import runs
 from .constants import G
-from .contacts import above_own_floor, corner_positions
+from .model.contacts import above_own_floor, corner_positions
 
 CLEAR_M = 0.03  # a foot point this close to its floor bears on it ...
 NEAR_M = 0.05  # ... and one this close that is nearly still (a foot rolling onto its tip)
@@ -103,9 +103,9 @@ class FootPoints:
 def foot_points(motion, body) -> FootPoints:
     """The :class:`FootPoints` of ``motion`` (y up, as physics sees it) with ``body``'s masses and
     soles. Heights are above each point's own floor, as contact detection takes them
-    (:func:`.contacts.above_own_floor`)."""
-    from .body import bone_ends, centre_of_mass, world_frames
-    from .contacts import _feet_in_order
+    (:func:`.model.contacts.above_own_floor`)."""
+    from .model.body import bone_ends, centre_of_mass, world_frames
+    from .model.contacts import _feet_in_order
 
     pos, R = world_frames(motion)
     com = centre_of_mass(body, R, pos)

@@ -5,8 +5,8 @@ All come from the clip at its own timing, (p'', p'^2) = (0, 1), under the origin
 
 * ``foot_force[f]`` (body weights): the contact forces that explain the root's wrench best
   (``terms.lambda_ref``: non-negative least squares over the friction-pyramid edges, the root rows
-  weighted first, :mod:`.dynamics`), summed over the foot's edges and sole corners (columns
-  ``16 * foot + 4 * corner + edge``, :mod:`.contacts`). Not the regions' least-force contact
+  weighted first, :mod:`.model.dynamics`), summed over the foot's edges and sole corners (columns
+  ``16 * foot + 4 * corner + edge``, :mod:`.model.contacts`). Not the regions' least-force contact
   (``RegionSet.lam0``), which leans on the residual allowance of every root row and so shows a
   ghost force of 0.09 body weight on every frame;
 * ``foot_point[f]`` (file units): where that force acts, the sole corners weighted by their share
@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..motion.frame import up_rotation
-from .contacts import BASIS_PER_FOOT, EDGES_PER_CORNER, friction_edges
-from .tree import kinematics
+from .model.contacts import BASIS_PER_FOOT, EDGES_PER_CORNER, friction_edges
+from .model.tree import kinematics
 
 FEET = ("left", "right")
 

@@ -16,7 +16,7 @@ NAME = "physics"
 MASS_FACTORS = (1e-3, 1e3)
 OBJECTIVES = ("match", "minimize")
 STARTS = ("global", "uniform")
-#: the timing spline's optimizers (:mod:`retime.physics.optimize`)
+#: the timing spline's optimizers (:mod:`retime.physics.timing.optimize`)
 OPTIMIZER_NAMES = ("newton", "lbfgs", "gd", "slsqp")
 #: fields of the objective's inner workings, kept out of the report's settings record (which lists
 #: what a user chooses)
@@ -87,7 +87,7 @@ def check_masses(motion, mass_factors: dict) -> dict | None:
 
 
 def solve(motion, request: Request, terms=None, region_options=None) -> Result:
-    """The contract's solve; ``terms`` (:class:`retime.physics.dynamics.DynamicsTerms` of this motion)
+    """The contract's solve; ``terms`` (:class:`retime.physics.model.dynamics.DynamicsTerms` of this motion)
     and ``region_options`` let a caller reuse the dynamics or tune the regions' LPs."""
     from .api import physics_result
 
@@ -116,10 +116,10 @@ class Shared:
     session of that motion and setting shares (computed once, read only by the sessions)."""
 
     settings: Settings
-    terms: object  # :class:`.dynamics.DynamicsTerms`
-    dynamics: object  # the :class:`.dynamics.PathDynamics` under the setting's gravity and masses
+    terms: object  # :class:`.model.dynamics.DynamicsTerms`
+    dynamics: object  # the :class:`.model.dynamics.PathDynamics` under the setting's gravity and masses
     regions: object  # :class:`.regions.RegionSet`
-    objective: object  # :class:`.objective.BakedObjective`
+    objective: object  # :class:`.timing.objective.BakedObjective`
 
 
 def _same_physics(a: Settings, b: Settings) -> bool:
@@ -130,7 +130,7 @@ def _same_physics(a: Settings, b: Settings) -> bool:
 def session(motion, request: Request, shared: Shared | None = None, cancel=None):
     """A live retiming of ``motion`` (McCann et al. §3.6): the timing spline's control points move,
     lock, appear and go, and :meth:`reconverge` warm-starts from the current solution (a
-    :class:`.optimize.RetimingSession`). ``shared``: what an earlier session of this motion
+    :class:`.timing.optimize.RetimingSession`). ``shared``: what an earlier session of this motion
     computed (its ``.shared``): all of it is reused under the same settings, its body dynamics
     under others. ``cancel``: asked while the regions are computed; True stops with
     :class:`.regions.Cancelled`."""

@@ -355,7 +355,7 @@ def check_source(motion, terms, regions) -> SourceCheck:
     """How physical ``motion`` (the conformed motion physics saw, or the original) is at its own
     timing, from the ``terms`` and ``regions`` of its dynamics; the causes when it is not (see the
     module docstring)."""
-    from .dynamics import conformed
+    from .model.dynamics import conformed
 
     res = np.asarray(regions.source_residual, dtype=float)
     spf = int(terms.samples_per_frame)

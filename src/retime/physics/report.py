@@ -8,7 +8,7 @@ region -- ``in_region``: that residual is at most ``tol`` = 1% of body weight (0
 inside) -- and the norm of the actuated joint torques (N m) under the fan contact model. The summary holds ``feasible_fraction`` (share of output frames in
 their region) and, per contact phase (stance / flight), its source and output span and mean speed;
 :func:`~retime.physics.api.physics_warp` adds ``least_duration`` (the fastest physical timing's duration,
-:mod:`retime.physics.fastest`; null when none passes the clip) and ``bind_pose_frames``.
+:mod:`retime.physics.timing.fastest`; null when none passes the clip) and ``bind_pose_frames``.
 """
 from __future__ import annotations
 
@@ -18,9 +18,9 @@ import numpy as np
 
 from ..io_util import atomic_write
 from ..phases import contact_phases
-from .feasibility import IN_REGION_TOL, feasibility, output_times
-from .forces import FanModel
-from .objective import actuated_mask
+from .regions.feasibility import IN_REGION_TOL, feasibility, output_times
+from .regions.forces import FanModel
+from .timing.objective import actuated_mask
 
 
 def build_report(spline, pd, regions, fps, tol=IN_REGION_TOL, info=None, extra=None) -> dict:

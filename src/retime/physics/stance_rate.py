@@ -1,7 +1,7 @@
 """Stance rate: how many times too slow a clip plays, from its single-support frames (no flight needed).
 
 Played ``k`` times too slow, every velocity is ``1/k`` and every acceleration ``1/k^2`` of the real
-one, so the root's wrench at a uniform rate ``r`` is ``r^2 b + c`` (:mod:`.dynamics`: ``b`` the
+one, so the root's wrench at a uniform rate ``r`` is ``r^2 b + c`` (:mod:`.model.dynamics`: ``b`` the
 path's velocity terms, ``c`` gravity's). On one foot the contact force must supply it through
 friction-cone forces at that foot's sole corners: a centre of pressure inside the sole, with the
 whole body's angular momentum accounted for (the inverted pendulum / ZMP relation, McCann et al.
@@ -35,8 +35,8 @@ from numba import njit
 from scipy.ndimage import binary_dilation, label
 
 from .constants import G
-from .contacts import BASIS_PER_FOOT, CORNERS_PER_FOOT, EDGES_PER_CORNER
-from .dynamics import RIDGE, _nnls_gram, _nonzero_columns
+from .model.contacts import BASIS_PER_FOOT, CORNERS_PER_FOOT, EDGES_PER_CORNER
+from .model.dynamics import RIDGE, _nnls_gram, _nonzero_columns
 
 RATES = np.exp(np.linspace(np.log(0.5), np.log(2.0), 31))  # the uniform rates tried (log-spaced)
 MIN_SINGLE_S = 0.3  # single-support time (s) below this says nothing about the rate

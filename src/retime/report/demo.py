@@ -89,7 +89,7 @@ def find_clip(name: str = DEFAULT_CLIP) -> Path:
 def flight_phase(motion) -> tuple[float, float] | None:
     """(start, end) source times of the longest stretch with no foot on the ground of the motion as
     physics sees it (conformed), or None (also when physics cannot conform it: the methods say why)."""
-    from retime.physics.contacts import foot_contacts
+    from retime.physics.model.contacts import foot_contacts
 
     try:
         return longest_flight(foot_contacts(motion), np.arange(motion.n_frames) / motion.fps)
@@ -211,7 +211,7 @@ def run_demo(
         phys_result = next((r.physics for r in done if r.physics is not None), None)
         for r in done:
             if r.feasible_fraction is None and phys_result is not None:
-                from retime.physics.feasibility import curve_feasibility
+                from retime.physics.regions.feasibility import curve_feasibility
 
                 r.feasible_fraction = curve_feasibility(r.curve, phys_result.dynamics, phys_result.regions,
                                                         motion.fps).fraction

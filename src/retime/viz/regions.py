@@ -246,7 +246,7 @@ def contact_names(report: dict) -> list[str]:
 # ---------------------------------------------------------------------- the region plot
 def _polygon_distance(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     """Euclidean distance from each point (N, 2) to the convex hull of ``poly`` (0 inside)."""
-    from retime.physics.polygon import closest_points_numpy, convex_hull
+    from retime.physics.regions.polygon import closest_points_numpy, convex_hull
 
     hull = convex_hull(poly)
     if len(hull) == 0:
@@ -317,7 +317,7 @@ def plot_regions(report: dict, frame: int | None, path=None, title: str | None =
         cb.set_label(heat_label, fontsize=8)
         cb.ax.tick_params(labelsize=7)
     if poly is not None and len(poly) >= 3:
-        from retime.physics.polygon import convex_hull
+        from retime.physics.regions.polygon import convex_hull
 
         hull = convex_hull(poly)
         ax.add_patch(Polygon(hull, closed=True, facecolor=(0.30, 0.64, 0.42, 0.18), edgecolor="#2f7d4f",
@@ -439,7 +439,7 @@ def physics_frame_region(result, report: dict, frame: int, n: int = 120) -> None
     magnitude at (p'', p'^2) is Eq. 14's integrand: alpha times the squared distance to the region
     plus the torque term, as McCann et al. show it in Fig. 6.
     """
-    from retime.physics.objective import frame_terms
+    from retime.physics.timing.objective import frame_terms
 
     rec = report["frames"][frame]
     i = rec["source_frame"]
@@ -455,7 +455,7 @@ def physics_frame_region(result, report: dict, frame: int, n: int = 120) -> None
     lo[1] = max(lo[1], -0.05 * span[1])
     U = np.linspace(lo[0], hi[0], n)
     V = np.linspace(lo[1], hi[1], n)
-    from retime.physics.objective import ObjectiveWorkspace
+    from retime.physics.timing.objective import ObjectiveWorkspace
 
     obj = result.objective
     hints = ObjectiveWorkspace.for_objective(obj)

@@ -2,7 +2,7 @@
 
 An output frame shows source time s with playback speed p' and acceleration p''. It is **in its
 region** when the residual wrench (body weights, the relaxation's weighted L1 measure, found by an
-LP: :func:`retime.physics.frame_region.residual_at`) that (u, v) = (p'', p'^2) needs beyond the nearest
+LP: :func:`retime.physics.regions.frame_region.residual_at`) that (u, v) = (p'', p'^2) needs beyond the nearest
 source frame's feasible region is at most :data:`IN_REGION_TOL`. Inside the region's polygon the
 residual is 0 without an LP.
 """

@@ -18,21 +18,21 @@ optimizer's w, each c is a normalized cumulative sum of all of them, so the same
   globalization; the polish starts from L-BFGS's answer, near a minimum.
 * **Stop:** converged when the (nearly undamped) step's predicted gain is below 1e-11 of the
   objective, or ten steps together gained less than 1e-10 of it (creeping along a direction of
-  almost no curvature); :func:`.optimize.solve` also asks the KKT residual.
+  almost no curvature); :func:`retime.physics.timing.optimize.solve` also asks the KKT residual.
 * **Bounds** (``w_min <= w <= w_max``: each increment c_{k+1} - c_k within w d_k T) by step
   truncation: a step that would leave them is shortened to stay inside (fraction to the boundary).
   A step that a bound blocks entirely ends the polish ("a speed bound blocks the step").
-* **Keytimes** p(t*) = s* by the augmented Lagrangian, as in :mod:`.optimize`: their residuals
+* **Keytimes** p(t*) = s* by the augmented Lagrangian, as in :mod:`retime.physics.timing.optimize`: their residuals
   read four coefficients (and T), so the penalty keeps the band.
 * **The torque term's kinks** at the fan's rays are mollified in the objective itself
-  (:data:`.objective.FAN_BLEND`); without that neither L-BFGS nor Newton converged.
+  (:data:`retime.physics.timing.objective.FAN_BLEND`); without that neither L-BFGS nor Newton converged.
 * **The l1 penalty's kink** is the smooth equivalent the objective already uses,
   ``alpha (sqrt(d^2 + delta^2) - delta)`` with ``delta`` = 1e-3 body weights of residual force
-  (:mod:`.objective`): quadratic within a thousandth of a body weight of the region, linear beyond;
+  (:mod:`retime.physics.timing.objective`): quadratic within a thousandth of a body weight of the region, linear beyond;
   a residual force below a thousandth of a body weight is below anything a capture resolves.
 
 ``w`` maps to (c, T) and back exactly (w_k = (c_{k+1} - c_k) / (d_k T), which also satisfies the
-speed-scale gauge of :meth:`.spline.TimingSpline.gauge`), so the polish returns the same kind of
+speed-scale gauge of :meth:`retime.physics.timing.spline.TimingSpline.gauge`), so the polish returns the same kind of
 answer as L-BFGS.
 """
 from __future__ import annotations

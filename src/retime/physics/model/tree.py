@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from .constants import STANDARD_GRAVITY
+from ..constants import STANDARD_GRAVITY
 
 FREE, SPHERICAL, FIXED = 0, 1, 2
 N_TERMS = 5  # a, b, gravity x, gravity y, gravity z

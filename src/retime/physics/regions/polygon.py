@@ -1,8 +1,8 @@
 """Convex polygons in the (u, v) = (p'', p'^2) plane: area, closest point and distance, clipping by
 half-planes, clean-up, counter-clockwise order and the convex hull.
 
-The feasible regions (:mod:`.regions`), the objective (:mod:`.objective`), the fastest timing
-(:mod:`.fastest`) and the region plot (:mod:`retime.viz.regions`) all measure with these.
+The feasible regions (:mod:`retime.physics.regions`), the objective (:mod:`retime.physics.timing.objective`), the fastest timing
+(:mod:`retime.physics.timing.fastest`) and the region plot (:mod:`retime.viz.regions`) all measure with these.
 
 Polygons are (k, 2) arrays in counter-clockwise order, or, for many polygons at once, flat vertex
 arrays ``px``, ``py`` with ``offsets`` (polygon i is ``offsets[i]:offsets[i + 1]``). The compiled
@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..errors import RetimeError
+from ...errors import RetimeError
 
 
 def polygon_area(P) -> float:

@@ -9,7 +9,7 @@ q_ddot = q'' p_dot^2 + q' p_ddot (Eq. 2-4), so inverse dynamics becomes, per sou
 
 with ``a = M(q) q'``, ``b = M(q) q'' + C(q, q') q'``, ``c = g(q)`` (the generalized gravity force,
 ``c = sum_k gravity_k * c_k``) and ``N = J^T P`` the friction-cone basis of the feet in contact
-(:mod:`retime.physics.contacts`). The original timing is ``(p_ddot, p_dot^2) = (0, 1)``.
+(:mod:`retime.physics.model.contacts`). The original timing is ``(p_ddot, p_dot^2) = (0, 1)``.
 
 Conventions (all SI: metres, kg, seconds, N, N m):
 
@@ -23,14 +23,14 @@ Conventions (all SI: metres, kg, seconds, N, N m):
   times between frames; ``times`` are source times in seconds. Contact states at a sample are those
   of the nearest frame.
 * the path is smoothed for dynamics by a Gaussian of ``smoothing`` seconds (see
-  :mod:`retime.physics.path`); the poses written out are never changed.
+  :mod:`retime.physics.model.path`); the poses written out are never changed.
 
 Memory grows with what later stages read per sample, not with the bodies: :func:`dynamics_terms`
 keeps the path and the body, and :meth:`DynamicsTerms.combine` computes, for each gravity and set
 of mass factors, the wrench each body needs for the ``a``, ``b`` and unit-gravity terms
-(:mod:`retime.physics.tree`) a chunk of samples at a time, and keeps only their projection
+(:mod:`retime.physics.model.tree`) a chunk of samples at a time, and keeps only their projection
 (torques are linear in every body's inertial parameters and in gravity). N is made from the sole
-corners' Jacobians when it is read (:class:`~retime.physics.contact_basis.ComputedContactBasis`).
+corners' Jacobians when it is read (:class:`~retime.physics.model.contact_basis.ComputedContactBasis`).
 
 Torque limits, when the body file gives none, come from the original motion (as in the paper):
 reference contact forces ``lambda_ref >= 0`` are fitted per sample to the original timing by
@@ -48,10 +48,10 @@ import numpy as np
 from numba import njit
 from scipy.ndimage import uniform_filter1d
 
-from ..errors import RetimeError
-from ..limits import check_memory
+from ...errors import RetimeError
+from ...limits import check_memory
 from .body import Body, centre_of_mass, load_body, skeleton_limbs, skeleton_tree
-from .constants import DEFAULT_SMOOTHING, STANDARD_GRAVITY, G
+from ..constants import DEFAULT_SMOOTHING, STANDARD_GRAVITY, G
 from .contact_basis import ComputedContactBasis, ContactBasis, as_contact_basis
 from .contacts import (CONTACT_POINTS, EDGES_PER_CORNER, at_samples, compact_contact_basis, corner_jacobians,
                        corner_positions, corner_rows, friction_edges, load_contacts)
@@ -486,7 +486,7 @@ BYTES_PER_FRAME_JOINT = 1_000
 def conformed(motion):
     """The motion as physics sees it (:func:`retime.motion.conform.conform`: y up, one floating
     base, rigid bones), with a bone stretch too large to make rigid as a RetimeError."""
-    from ..motion.conform import BoneStretch, conform
+    from ...motion.conform import BoneStretch, conform
 
     try:
         return conform(motion)
@@ -498,7 +498,7 @@ def conformed(motion):
 def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smoothing=DEFAULT_SMOOTHING,
                    reference=True, noise_band=NOISE_BAND) -> DynamicsTerms:
     """Path dynamics terms of ``motion`` (see the module docstring). ``body``: None (defaults), a
-    :class:`~retime.physics.body.Body` or a TOML body file; ``contacts``: None (detect), a contact
+    :class:`~retime.physics.model.body.Body` or a TOML body file; ``contacts``: None (detect), a contact
     file or an (F, 4) bool array; ``reference=False`` skips the reference forces and default limits.
 
     ``noise_band`` (seconds, > ``smoothing``; None or 0: off): the path is also low-passed at this
@@ -506,7 +506,7 @@ def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smooth
     coefficient ``b`` differs between the two (``PathDynamics.b_noise``: the RMS over +-noise_band
     of the capped differences, zero in flight). Captured accelerations are
     only known to about that much: twice-differentiated marker noise and the slow sway of a still
-    stance look alike, and played k times faster both grow k^2-fold (see :mod:`.regions`)."""
+    stance look alike, and played k times faster both grow k^2-fold (see :mod:`retime.physics.regions`)."""
     check_memory(BYTES_PER_FRAME_JOINT * motion.n_frames * motion.skeleton.n_joints * max(1, int(samples_per_frame)),
                  f"physics on {motion.n_frames:,} frames")
     if body is None:  # no legs is refused before the conform, whose dummy-root walk is slow on a long chain

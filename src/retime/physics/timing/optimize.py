@@ -1,6 +1,6 @@
 """Optimizing the timing curve (McCann et al. 2006, sec. 3.6), and an interactive session.
 
-Variables: the spline's derivative coefficients ``w`` (see :mod:`retime.physics.spline`), bounded
+Variables: the spline's derivative coefficients ``w`` (see :mod:`retime.physics.timing.spline`), bounded
 below by ``w_min`` (the curve never stops or runs backwards) and above by ``w_max``. The end point
 p(T) = S holds by construction; a free duration is part of the same variables. What remains are
 equality constraints, each a smooth function of ``w``:
@@ -14,7 +14,7 @@ coefficients to its pinned span (:meth:`TimingSpline.coefficients`), so a lock h
 Methods:
 
 * ``"newton"`` (default): ``"lbfgs"``, then Newton's method on the banded problem from its answer
-  (:mod:`.newton`), whose answer is kept when its objective is no worse; its stopping test is
+  (:mod:`retime.physics.timing.newton`), whose answer is kept when its objective is no worse; its stopping test is
   second order (no Newton step predicts a gain), which L-BFGS's (the gain over ten iterations)
   is not: L-BFGS stopped 0.1-1 source frames from the minimum, wherever the input's rounding led it;
 * ``"gd"``: the paper's gradient descent (projected onto the bounds, Armijo backtracking);
@@ -39,8 +39,8 @@ import numpy as np
 from numba import njit
 from scipy.optimize import minimize
 
-from ..blas import single_threaded_blas
-from ..errors import RetimeError
+from ...blas import single_threaded_blas
+from ...errors import RetimeError
 from .newton import OBJECTIVE_FLOOR
 from .objective import BakedObjective, ObjectiveWorkspace, evaluate
 from .spline import TimingSpline
@@ -307,7 +307,7 @@ def solve(problem: Problem, w0=None, method="newton", max_iter=500, tol=1e-9, eq
 
 
 def polish(problem: Problem, w, eq_tol=1e-6, max_iter=300, max_seconds=None):
-    """Newton's method from w on the banded (c, T) coordinates (:mod:`.newton`); keytimes by an
+    """Newton's method from w on the banded (c, T) coordinates (:mod:`retime.physics.timing.newton`); keytimes by an
     augmented Lagrangian whose multipliers start at their least-squares values at w.
     (w, iterations, converged, message, evaluations)."""
     from .newton import BandedCoordinates, BandedObjective, newton_inner
@@ -443,7 +443,7 @@ class RetimingSession:
 
     def __init__(self, problem: Problem, optimizer=None, fps=None):
         if optimizer is None:  # the physics method's default (the editor's sessions, physics_warp's own)
-            from .method import Settings
+            from ..method import Settings
 
             optimizer = Settings.optimizer
         self.problem = problem

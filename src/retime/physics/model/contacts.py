@@ -4,7 +4,7 @@ Contact points, in this order everywhere (``CONTACT_POINTS``)::
 
     0 left_heel   1 left_toe   2 right_heel   3 right_toe
 
-Each point is a pair of sole corners (see :class:`retime.physics.body.Foot`): the heel's two
+Each point is a pair of sole corners (see :class:`retime.physics.model.body.Foot`): the heel's two
 corners ride on the foot joint's body, the toe's two on the toe joint's body.
 
 **Detection** (:func:`detect_contacts`), per point, from the motion's frames: its height is the lower
@@ -44,8 +44,8 @@ import numpy as np
 from numba import njit
 from scipy.ndimage import maximum_filter1d, minimum_filter1d, uniform_filter1d
 
-from ..errors import FormatError, RetimeError
-from ..io_util import atomic_write
+from ...errors import FormatError, RetimeError
+from ...io_util import atomic_write
 from .tree import points_jacobian_transpose, support_rows
 
 CONTACT_POINTS = ("left_heel", "left_toe", "right_heel", "right_toe")
@@ -153,7 +153,7 @@ def _clean(state, min_frames):
 
 def point_tracks(motion, body, frames=None):
     """Height above its own floor (F, 4) and speed (F, 4) of each contact point, in metres and m/s;
-    ``frames``: the motion's world frames if known (see :func:`retime.physics.body.world_frames`)."""
+    ``frames``: the motion's world frames if known (see :func:`retime.physics.model.body.world_frames`)."""
     from .body import world_frames
 
     pos, R = world_frames(motion) if frames is None else frames

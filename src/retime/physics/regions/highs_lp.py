@@ -5,7 +5,7 @@ Everything that talks to ``highspy`` is here, including its private raw binding 
 
 HiGHS objects are not thread-safe, so they are never shared: a :class:`HighsPool` belongs to one
 computation (a chunk of frames of :func:`retime.physics.regions.compute_regions`, or one call of
-:func:`retime.physics.frame_region.residual_at`) and is handed down explicitly.
+:func:`retime.physics.regions.frame_region.residual_at`) and is handed down explicitly.
 """
 from __future__ import annotations
 

@@ -31,7 +31,7 @@ Defaults (every value can be overridden by a TOML body file, see :func:`read_bod
   toe corners (on the toe joint's body, or the foot's if there is none) are halfway from the toe
   joint to the tip, 0.38 foot-lengths apart (foot length = heel to tip).
 * **Friction** 0.5; **torque limits** estimated from the original motion (see
-  :mod:`retime.physics.dynamics`): ``torque_margin`` (1.5) times the largest |torque| of each joint
+  :mod:`retime.physics.model.dynamics`): ``torque_margin`` (1.5) times the largest |torque| of each joint
   axis over the clip, plus ``torque_floor`` (2 N m), but never below the joint's **strength**:
   ``strength_scale`` (1) times :data:`STRENGTH` (N m for 70 kg, scaled by the body mass). McCann et
   al. took their limits from the torques of *several* actions; one clip alone understates what its
@@ -49,9 +49,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError, RetimeError
-from ..io_util import atomic_write
-from ..motion.rig import Limbs, NotBiped, bone_joints, descendants, limbs_by_name, part_of
+from ...errors import FormatError, RetimeError
+from ...io_util import atomic_write
+from ...motion.rig import Limbs, NotBiped, bone_joints, descendants, limbs_by_name, part_of
 from .tree import FIXED, FREE, SPHERICAL, TreeModel
 
 BODY_MASS = 70.0
@@ -386,8 +386,8 @@ def default_body(skeleton, mass=None, feet_names=None, motion=None, frames=None)
 
 def world_frames(motion):
     """World joint positions (F, J, 3) in metres and rotation matrices (F, J, 3, 3) of a motion."""
-    from ..motion import forward_kinematics
-    from ..motion.quat import quat_to_matrix
+    from ...motion import forward_kinematics
+    from ...motion.quat import quat_to_matrix
 
     pos, rot = forward_kinematics(motion)
     return pos * motion.skeleton.meters_per_unit, quat_to_matrix(rot)

@@ -1,7 +1,7 @@
 """The fastest physical timing of a motion through its feasible regions (Bobrow; TOPP-RA).
 
 Along the source path the timing is a speed profile v(s) = p'^2 with dv/ds = 2 p'' (since
-d(p'^2)/dp = 2 p''), and it is physical where (p'', v) lies in the frame's region (:mod:`.regions`).
+d(p'^2)/dp = 2 p''), and it is physical where (p'', v) lies in the frame's region (:mod:`retime.physics.regions`).
 Between two frames p'' is taken constant, so v changes linearly: v_{i+1} = v_i + 2 ds_i p''_i. The
 sets of speeds from which the end of the clip can still be reached physically (the *controllable*
 sets, intervals because the regions are convex) are found backwards frame by frame by clipping each
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .polygon import clip_halfplanes
+from ..regions.polygon import clip_halfplanes
 
 
 @dataclass
@@ -83,7 +83,7 @@ def _fastest(offsets, vx, vy, times, speed):
 
 
 def fastest_timing(regions) -> FastestTiming:
-    """The time-optimal physical timing through ``regions`` (a :class:`~.regions.RegionSet`)."""
+    """The time-optimal physical timing through ``regions`` (a :class:`~retime.physics.regions.RegionSet`)."""
     offsets = np.asarray(regions.offsets, dtype=np.int64)
     verts = np.asarray(regions.verts, dtype=float)
     times = np.asarray(regions.times, dtype=float)

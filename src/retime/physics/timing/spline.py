@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 from scipy.interpolate import BSpline
 
-from ..errors import RetimeError
+from ...errors import RetimeError
 
 
 class TimingSpline:
@@ -162,7 +162,7 @@ class TimingSpline:
 
     def timing_curve(self, fps, per_frame=4):
         """A :class:`retime.warp.TimingCurve` sampling the spline densely (monotone cubic between)."""
-        from ..warp import TimingCurve
+        from ...warp import TimingCurve
 
         T = self.duration
         n = max(8, int(np.ceil(T * fps * per_frame)) + 1)

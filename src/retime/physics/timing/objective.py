@@ -8,7 +8,7 @@ paper's) or with u and v scaled per frame by the root wrench they demand (``"res
 default, :func:`residual_scales`); ``pen(d)`` is d^2 as in Eq. 14 (``penalty="l2"``) or the exact
 penalty sqrt(d^2 + delta^2) - delta (``"l1"``, which :mod:`retime.physics.api` uses). The last
 term, a mild preference for the original speed, is not the paper's (``gamma = 0`` removes it).
-``tau`` are the actuated joint torques with the fan contact model of :mod:`retime.physics.forces`;
+``tau`` are the actuated joint torques with the fan contact model of :mod:`retime.physics.regions.forces`;
 the target ``tau'`` is zero (``"minimize"``, least effort) or the original motion's torques at its
 original timing (``"match"``). ``tau_scale^2`` is the mean squared original torque, so ``beta`` is
 dimensionless. Inside one fan wedge lambda is affine in (p'', p'^2), hence the squared torque error
@@ -45,8 +45,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from ..errors import RetimeError
-from .polygon import boundary_closest, edge_projection
+from ...errors import RetimeError
+from ..regions.polygon import boundary_closest, edge_projection
 
 OBJECTIVES = ("match", "minimize")
 FAN_BLEND = 0.01  # body weights: the torque term's kinks at the fan rays are smoothed over this band,
@@ -141,7 +141,7 @@ def samples(times, samples_per_frame=4, interp="nearest"):
 
 def target_torques(kind, pd0, regions0):
     """Target torques per frame (all rows): zeros or the original's (see forces.original_torques)."""
-    from .forces import original_torques
+    from ..regions.forces import original_torques
 
     if kind == "minimize":
         return np.zeros_like(np.asarray(pd0.c, dtype=float))
@@ -346,7 +346,7 @@ def _coefs(A, B, D, scale, out):
 @njit(cache=True)
 def _bake_kernel(a, b, c, tgt, act, N, rows, poff, px, py, cen, lam, clam, mode, scale, wc):
     """wc per vertex. a, b, c, tgt (n, nv) are read on the actuated rows ``act`` (nr,) in place; N
-    (n, R, K) is the contact basis on its own rows (:class:`.contact_basis.ContactBasis`), ``rows``
+    (n, R, K) is the contact basis on its own rows (:class:`retime.physics.model.contact_basis.ContactBasis`), ``rows``
     the place of each actuated row in it (-1: a row of zeros), read one frame at a time."""
     n = a.shape[0]
     nr = len(act)
@@ -813,7 +813,7 @@ def frame_gradient(obj: BakedObjective, i, u, v, workspace: ObjectiveWorkspace |
 
 def frame_terms_numpy(obj: BakedObjective, i, u, v):
     """Twin of :func:`frame_terms`: (distance in the objective's metric, torque term)."""
-    from .polygon import closest_points_numpy
+    from ..regions.polygon import closest_points_numpy
 
     ob = obj.arrays
     su, sv = ob.scale[i]
@@ -917,7 +917,7 @@ class UnbakedObjective:
 
 def unbaked(pd, regions, target, obj: BakedObjective) -> UnbakedObjective:
     """Per-wedge affine contact models and the per-dof dynamics for :func:`evaluate_unbaked`."""
-    from .forces import fan_model
+    from ..regions.forces import fan_model
 
     act = actuated_mask(pd)
     K = pd.N.shape[2]

@@ -5,7 +5,7 @@ continuous) and the root position are optionally low-pass filtered (a Gaussian o
 seconds, with odd reflection at the ends so a constant velocity passes unchanged) and then
 interpolated by a not-a-knot cubic spline through the frames (compiled, for thousands of joints); the curve's rotation is the normalized
 quaternion. Derivatives are exact derivatives of that curve (no finite differences), in the
-tangent space used by Pinocchio and :mod:`retime.physics.tree`:
+tangent space used by Pinocchio and :mod:`retime.physics.model.tree`:
 
 * ball joint: body angular velocity w = 2 Im(conj(Q) Q') / |Q|^2 and its derivative
   w' = (2 Im(conj(Q) Q'') - 2 (Q . Q') w) / |Q|^2 (the rate of the same body-frame vector);
@@ -21,8 +21,8 @@ import numpy as np
 from numba import njit
 from scipy.ndimage import gaussian_filter1d
 
-from ..errors import RetimeError
-from ..motion.quat import continuous
+from ...errors import RetimeError
+from ...motion.quat import continuous
 from .tree import FIXED, FREE
 
 

@@ -4,7 +4,7 @@ The constraints of a frame (Eq. 13) become, in the (u, v) = (p'', p'^2) plane, h
 without contact forces, :func:`_halfplanes`) and an LP in (u, v, lam) (the rest, :func:`_frame_lp`);
 the polygon is traced by the compiled simplex of :mod:`.simplex` or by HiGHS alone, clipped by the
 half-planes (:mod:`.polygon`), and relaxed when the captured motion or the changed physics need it
-(:func:`source_fit`, :func:`_residual_lp`). See :mod:`.regions` for the whole model and the options.
+(:func:`source_fit`, :func:`_residual_lp`). See :mod:`retime.physics.regions` for the whole model and the options.
 
 Every function that solves an LP takes the :class:`~.highs_lp.HighsPool` it may use; without one it
 makes its own, so nothing is shared between calls unless the caller says so.
@@ -18,7 +18,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from ..errors import RetimeError
+from ...errors import RetimeError
 from .highs_lp import FrameLP, HighsPool, solve_dual_simplex
 from .polygon import ccw_order, clip_halfplanes, closest_point, dedupe
 from .simplex import INF, phase2, walk
@@ -26,7 +26,7 @@ from .simplex import INF, phase2, walk
 
 @dataclass
 class RegionOptions:
-    """How feasible regions are computed (:mod:`.regions`). Units: u = p'' in 1/s, v = p'^2 (dimensionless)."""
+    """How feasible regions are computed (:mod:`retime.physics.regions`). Units: u = p'' in 1/s, v = p'^2 (dimensionless)."""
 
     u_max: float = 60.0
     v_max: float = 64.0  # up to 8x speed (still frames, which any speed suits)
@@ -46,7 +46,7 @@ class RegionOptions:
 
 @dataclass
 class FrameRegion:
-    """One frame's polygon and what it was computed from (see :class:`~.regions.RegionSet`)."""
+    """One frame's polygon and what it was computed from (see :class:`~retime.physics.regions.RegionSet`)."""
 
     verts: np.ndarray
     lam: np.ndarray
@@ -337,7 +337,7 @@ def _polygon(a, b, c, N, lo, hi, rho, act, rows, other, opts, Kall, eps, pool, l
 
 def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_root: int,
                  budget=None, noise=None, pool: HighsPool | None = None) -> FrameRegion:
-    """The feasible polygon of one frame (the model: :mod:`.regions`).
+    """The feasible polygon of one frame (the model: :mod:`retime.physics.regions`).
 
     ``budget`` (nv,): row residuals the captured motion needs at this frame under the original
     physics (:func:`source_fit`); ``None`` means these coefficients *are* the original physics and the

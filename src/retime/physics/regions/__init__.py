@@ -82,8 +82,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import RetimeError
-from .constants import G
+from ...errors import RetimeError
+from ..constants import G
 from .frame_region import FrameRegion, RegionOptions, frame_region, row_weights, source_fit, unactuated_rows
 from .highs_lp import HighsPool
 from .polygon import polygon_distance, polygon_distances
