@@ -192,11 +192,12 @@ def test_bad_input_is_one_line(played, name):
 
 
 def test_zip_is_an_extension(tmp_path):
-    """The zip holds the manifest and __init__.py at its top, the shared armature module, and nothing else."""
+    """The zip holds the manifest and __init__.py at its top, the shared armature module, the options
+    table, and nothing else."""
     addon = build_addon(tmp_path)
     names = set(zipfile.ZipFile(addon).namelist())
     assert {"blender_manifest.toml", "__init__.py", "operator.py", "apply.py", "runner.py", "check_view.py",
-            "armature.py"} == names
+            "options.py", "armature.py"} == names
     import tomllib
 
     manifest = tomllib.loads(zipfile.ZipFile(addon).read("blender_manifest.toml").decode())
