@@ -39,6 +39,7 @@ from retime.data import bundled_path
 from retime.motion import load_motion
 from retime.physics.timing import objective as O
 from retime.physics.api import DEFAULT_SMOOTHING, make_problem
+from retime.physics.method import Settings
 from retime.physics.timing.globalstart import global_start
 from retime.physics.timing.optimize import RetimingSession
 from retime.physics.regions import RegionOptions, compute_regions
@@ -139,7 +140,7 @@ def reconvergence(prepared, repeat_moves=5):
     pd, rs, obj = prepared
     S = float(pd.times[-1])
     fps = 1.0 / float(pd.times[1] - pd.times[0])
-    sess = RetimingSession(make_problem(obj, S, snap_duration(S / 2, fps)))
+    sess = RetimingSession(make_problem(obj, S, snap_duration(S / 2, fps)), Settings.optimizer)  # the editor's
     for _ in range(4):
         sess.reconverge(max_iter=5000, tol=1e-10)
     base = sess.spline.w.copy()

@@ -15,6 +15,7 @@ import numpy as np
 
 from physics_common import load, parse_args
 from retime.physics.api import make_problem, prepare
+from retime.physics.method import Settings
 from retime.physics.timing.optimize import RetimingSession
 from retime.viz.plot import save_figure
 from retime.warp import snap_duration
@@ -25,7 +26,7 @@ _, pd, regions, obj = prepare(m, terms=terms)
 T = snap_duration(m.duration / 2, m.fps)
 sessions = {}
 for start in ("global", "uniform"):
-    s = RetimingSession(make_problem(obj, m.duration, T, start=start), fps=m.fps)
+    s = RetimingSession(make_problem(obj, m.duration, T, start=start), Settings.optimizer, fps=m.fps)
     s.reconverge(max_iter=5000, tol=1e-10)
     sessions[start] = s
     print(f"  {start} start: objective {s.objective():.5f}")

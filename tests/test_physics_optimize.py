@@ -12,6 +12,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 import physics_synth as ps  # noqa: E402
 
 from retime.physics.api import make_problem  # noqa: E402
+from retime.physics.method import Settings  # noqa: E402
 from retime.physics.timing.optimize import RetimingSession, solve  # noqa: E402
 from retime.physics.timing.spline import TimingSpline  # noqa: E402
 
@@ -127,7 +128,7 @@ def test_methods_reach_the_same_optimum(quarter_jump):
 def test_session_move_lock_add_remove(quarter_jump):
     pd, rs, obj = quarter_jump
     S = pd.times[-1]
-    sess = RetimingSession(make_problem(obj, S, S), fps=120.0)
+    sess = RetimingSession(make_problem(obj, S, S), Settings.optimizer, fps=120.0)
     sess.reconverge(max_iter=3000, tol=1e-9)
     e0 = sess.objective()
     cps = sess.control_points()

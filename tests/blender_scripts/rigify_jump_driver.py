@@ -90,7 +90,7 @@ def main(zip_path, blend, bvh, folder, results_path):
     names = [b.name for b in rig.data.bones if b.use_deform]
     np.savez(os.path.join(folder, "source.npz"), heads=world_heads(rig, names, range(start, end + 1)),
              names=np.array(names))
-    original, slot = rig.animation_data.action, getattr(rig.animation_data, "action_slot", None)
+    original = rig.animation_data.action
     result = {"start": start, "end": end, "deform_bones": len(names), "controls": sorted(FOLLOW)}
     result["check"] = sorted(bpy.ops.retime.check(exchange_folder=os.path.join(folder, "check")))
     result["residual_curve"] = residual_curve(armature, start, end)

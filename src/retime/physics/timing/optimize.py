@@ -441,13 +441,11 @@ class RetimingSession:
     Control points are the spline's (output time, source time) pairs (:meth:`control_points`);
     index 0 and the last one are the ends (source 0 and S) and cannot move vertically."""
 
-    def __init__(self, problem: Problem, optimizer=None, fps=None):
-        if optimizer is None:  # the physics method's default (the editor's sessions, physics_warp's own)
-            from ..method import Settings
-
-            optimizer = Settings.optimizer
+    def __init__(self, problem: Problem, optimizer: str, fps=None):
+        # optimizer: one of OPTIMIZERS, given by the caller (physics' default is Settings.optimizer, in the
+        # front; this wing does not reach up for it)
         self.problem = problem
-        self.optimizer = optimizer  # one of OPTIMIZERS
+        self.optimizer = optimizer
         self.fps = fps
         self.history: list[SolveInfo] = []
 
