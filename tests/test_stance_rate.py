@@ -237,6 +237,10 @@ def test_flights_at_g_under_an_unusual_guessed_unit_are_a_caution():
     assert "legs 0.81 m" in c.sentence and "legs 0.55 m" in c.sentence and "at the file's 95.9 fps" in c.sentence
     assert _factor(c.sentence) == pytest.approx(np.sqrt(0.0376 / (0.95 * 0.0254)), rel=0.01)  # 1.25x too slow
     assert "likely 120" in c.sentence and "--units in or --units 0.0376" in c.sentence
+    # what the metadata says is given, not weighed: 95.9 fps is no common capture rate, 100 fps is
+    assert "95.9 fps, no common capture rate;" in c.sentence
+    c = unit_caution(SimpleNamespace(ratio=1.04), 100.0, _guess(0.0376))  # jumping.bvh written at 100 fps
+    assert c.code == "units_unconfirmed" and "the file's 100.0 fps;" in c.sentence
     assert unit_caution(SimpleNamespace(ratio=0.95), 120.0, _guess(0.0376, confidence="sure")) is None
     # a guess that is a common unit, or one whose nearest common unit also gives flights at about g: nothing
     assert unit_caution(SimpleNamespace(ratio=1.0), 120.0, _guess(0.0254, confidence="likely")) is None

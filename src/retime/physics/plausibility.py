@@ -77,6 +77,8 @@ KNOWN_UNIT = ("sure", "declared", "given")  # unit confidences at which the leng
 COMMON_RATES = (24, 25, 30, 48, 50, 60, 90, 100, 120, 240)  # fps a fitted rate is snapped to ...
 UNIT_SNAP = 0.05  # a guessed unit this close to a common one that gives 1 g flights is that one
 RATE_SNAP = 0.1  # ... when this close (relative; flights measure a clip's rate to about 8 %)
+CAPTURE_RATE_TOL = 0.005  # a written rate this close to a common one is that rate (119.88 = 120/1.001 is;
+# every real file in ../shared/data is within 0.11 % of one)
 
 
 @dataclass
@@ -228,6 +230,11 @@ def _legs(frame, mpu: float) -> str:
     return f"legs {leg:.2f} m hip to ankle" if np.isfinite(leg) else "legs of unknown length"
 
 
+def _capture_rate(fps: float) -> bool:
+    """Whether ``fps`` is a common capture rate as written (:data:`CAPTURE_RATE_TOL`)."""
+    return any(abs(fps / r - 1.0) <= CAPTURE_RATE_TOL for r in COMMON_RATES)
+
+
 def _rate_parts(k: float, fps: float) -> tuple[str, str, str]:
     """(how: "1.25x too slow", the Frame Times: "Frame Time 0.0104 s; 0.0083 s fits", the fix:
     "96 fps: give --fps 96") for a clip that plays ``k`` times too slow at ``fps``."""
@@ -308,13 +315,14 @@ def unit_caution(flight: FlightGravity, fps: float, frame) -> Cause | None:
             or not _human_in(frame, mpu):
         return None
     how, times, rate_fix = _rate_parts(1.0 / np.sqrt(ratio), fps)
-    return Cause("units_unconfirmed", f"length unit unconfirmed: two readings fit, and neither flights nor stance "
-                                      "forces can tell them apart (they measure the unit times the frame rate "
-                                      f"squared): as read, 1 unit = {frame.meters_per_unit:.4g} m ({frame.unit_confidence}), "
-                                      f"{_legs(frame, frame.meters_per_unit)}, the flights fall at {flight.ratio:.2f} g "
-                                      f"at the file's {fps:.1f} fps; in {UNIT_NAMES.get(name, name)}, the nearest "
-                                      f"common unit, {_legs(frame, mpu)}, they would fall at {ratio:.2f} g and the clip "
-                                      f"would play {how} ({times}: {rate_fix}). Give --units {name} or --units "
+    written = f"the file's {fps:.1f} fps" + ("" if _capture_rate(fps) else ", no common capture rate")
+    return Cause("units_unconfirmed", "length unit unconfirmed: two readings fit, and neither flights nor stance forces "
+                                      "can tell them apart (they measure the unit times the frame rate squared): as read, "
+                                      f"1 unit = {frame.meters_per_unit:.4g} m ({frame.unit_confidence}), "
+                                      f"{_legs(frame, frame.meters_per_unit)}, the flights fall at {flight.ratio:.2f} g at "
+                                      f"{written}; in {UNIT_NAMES.get(name, name)}, the nearest common unit, "
+                                      f"{_legs(frame, mpu)}, they would fall at {ratio:.2f} g and the clip would play "
+                                      f"{how} ({times}: {rate_fix}). Give --units {name} or --units "
                                       f"{frame.meters_per_unit:.4g} to decide")
 
 
