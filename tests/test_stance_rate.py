@@ -153,6 +153,23 @@ def test_the_stance_rate_scales_with_time_exactly(walk):
     assert STANCE_RATE[0] <= own.time_factor <= STANCE_RATE[1]
 
 
+def test_the_frames_judged_can_be_given(walk):
+    # the single-support frames given are the default; its first three steps give those steps only
+    from scipy.ndimage import label
+
+    from retime.physics.stance_rate import single_support
+
+    terms = dynamics_terms(walk)
+    pd0 = terms.combine()
+    own = stance_rate(terms, pd0)
+    single = single_support(np.asarray(pd0.contact)[::int(terms.samples_per_frame)], terms.fps, terms.smoothing)
+    given = stance_rate(terms, pd0, frames=single)
+    assert given.time_factor == own.time_factor and np.array_equal(given.steps, own.steps)
+    step_of, _ = label(single)
+    first = stance_rate(terms, pd0, frames=(step_of >= 1) & (step_of <= 3))
+    assert 0 < len(first.steps) < len(own.steps) and np.array_equal(first.steps, own.steps[:len(first.steps)])
+
+
 def test_a_walk_played_too_slow_is_named_from_its_stance(walk, jump):
     real = check_clip(walk)
     assert real.physical and real.verdict.flight.seconds == 0.0  # no flight to measure
