@@ -152,3 +152,19 @@ def test_a_locked_root_is_named_not_a_wrong_up_axis(name):
     # rests on a 'wall') and the check said up_axis
     c = check_clip(M.root_locked(_dev(name)))
     assert not c.physical and c.verdict.codes == ["root_locked"]
+
+
+def test_the_verdict_line_and_the_cause_print_one_flight_g():
+    # 0.9553 g read 0.95 in the verdict line (rounded to 0.955, then printed to 2 places) and 0.96 in
+    # the cause: both now format the unrounded ratio
+    from retime.physics.check import ClipCheck
+    from retime.physics.plausibility import SourceCheck, flight_cause
+
+    flight = FlightGravity(fps=120.0, flights=[Flight(0, 48, 0.9553 * G, 0.0)])
+    verdict = SourceCheck(False, 0.0, 0.0, [flight_cause(flight, 120.0, None)], flight)
+    n = 4
+    c = ClipCheck(fps=120.0, times=np.arange(n) / 120.0, residual=np.zeros(n), torque_excess=np.zeros(n),
+                  com_accel=np.zeros((n, 3)), flight=np.zeros(n, bool), foot_slide=np.zeros(n), verdict=verdict)
+    line = c.verdict_line()
+    assert "the centre of mass falls at 0.96 g. " in line and "falls at 0.96 g, not 1 g" in line and "0.95 g" not in line
+    assert c.summary()["flight_g"] == verdict.as_dict()["flight_g"] == 0.9553

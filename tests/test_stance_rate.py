@@ -153,6 +153,23 @@ def test_the_stance_rate_scales_with_time_exactly(walk):
     assert STANCE_RATE[0] <= own.time_factor <= STANCE_RATE[1]
 
 
+def test_the_frames_judged_can_be_given(walk):
+    # the single-support frames given are the default; its first three steps give those steps only
+    from scipy.ndimage import label
+
+    from retime.physics.stance_rate import single_support
+
+    terms = dynamics_terms(walk)
+    pd0 = terms.combine()
+    own = stance_rate(terms, pd0)
+    single = single_support(np.asarray(pd0.contact)[::int(terms.samples_per_frame)], terms.fps, terms.smoothing)
+    given = stance_rate(terms, pd0, frames=single)
+    assert given.time_factor == own.time_factor and np.array_equal(given.steps, own.steps)
+    step_of, _ = label(single)
+    first = stance_rate(terms, pd0, frames=(step_of >= 1) & (step_of <= 3))
+    assert 0 < len(first.steps) < len(own.steps) and np.array_equal(first.steps, own.steps[:len(first.steps)])
+
+
 def test_a_walk_played_too_slow_is_named_from_its_stance(walk, jump):
     real = check_clip(walk)
     assert real.physical and real.verdict.flight.seconds == 0.0  # no flight to measure
@@ -217,21 +234,62 @@ def test_a_caution_is_exit_3_and_in_the_report(capsys, monkeypatch, tmp_path):
     assert summary["stance_steps"] == 1 and "one step" in summary["caution_sentences"][0]
 
 
+def _guess(mpu, leg_m=0.814, confidence="unusual scale"):
+    from types import SimpleNamespace
+
+    return SimpleNamespace(unit_confidence=confidence, meters_per_unit=mpu, leg_m=leg_m, height_m=1.5)
+
+
 def test_flights_at_g_under_an_unusual_guessed_unit_are_a_caution():
-    # jumping.bvh's guess (0.0376 m a unit) with its Frame Time x1.25: the flight falls at 0.95 g under
-    # the guess, at 0.64 g in inches, the nearest common unit: which is right, the flight cannot say
+    # jumping.bvh's guess (0.0376 m a unit, legs 0.81 m) with its Frame Time x1.25: the flight falls at
+    # 0.95 g under the guess, at 0.64 g in inches, the nearest common unit, where its legs are 0.55 m (a
+    # child's): both are human, and flights and stance forces measure only unit x rate^2, so the check
+    # does not decide; the caution names both readings with their numbers
     from types import SimpleNamespace
 
     from retime.physics.plausibility import unit_caution
 
-    guess = SimpleNamespace(unit_confidence="unusual scale", meters_per_unit=0.0376)
-    c = unit_caution(SimpleNamespace(ratio=0.95), 120.0, guess)
-    assert c.code == "units_unconfirmed" and "nearest common unit, in," in c.sentence
+    c = unit_caution(SimpleNamespace(ratio=0.95), 95.9, _guess(0.0376))
+    assert c.code == "units_unconfirmed" and "in inches, the nearest common unit," in c.sentence
+    assert "legs 0.81 m" in c.sentence and "legs 0.55 m" in c.sentence and "at the file's 95.9 fps" in c.sentence
     assert _factor(c.sentence) == pytest.approx(np.sqrt(0.0376 / (0.95 * 0.0254)), rel=0.01)  # 1.25x too slow
-    assert unit_caution(SimpleNamespace(ratio=0.95), 120.0, SimpleNamespace(unit_confidence="sure",
-                                                                            meters_per_unit=0.0376)) is None
+    assert "likely 120" in c.sentence and "--units in or --units 0.0376" in c.sentence
+    # what the metadata says is given, not weighed: 95.9 fps is no common capture rate, 100 fps is
+    assert "95.9 fps, no common capture rate;" in c.sentence
+    c = unit_caution(SimpleNamespace(ratio=1.04), 100.0, _guess(0.0376))  # jumping.bvh written at 100 fps
+    assert c.code == "units_unconfirmed" and "the file's 100.0 fps;" in c.sentence
+    assert unit_caution(SimpleNamespace(ratio=0.95), 120.0, _guess(0.0376, confidence="sure")) is None
     # a guess that is a common unit, or one whose nearest common unit also gives flights at about g: nothing
-    assert unit_caution(SimpleNamespace(ratio=1.0), 120.0, SimpleNamespace(unit_confidence="likely",
-                                                                           meters_per_unit=0.0254)) is None
-    assert unit_caution(SimpleNamespace(ratio=1.0), 120.0, SimpleNamespace(unit_confidence="unusual scale",
-                                                                           meters_per_unit=0.028)) is None
+    assert unit_caution(SimpleNamespace(ratio=1.0), 120.0, _guess(0.0254, confidence="likely")) is None
+    assert unit_caution(SimpleNamespace(ratio=1.0), 120.0, _guess(0.028)) is None
+
+
+def test_a_common_unit_that_makes_no_human_is_not_the_cause():
+    # the body's size decides where only one reading is human: flights at 3.76 g under the guess
+    # (jumping.bvh at Frame Time x0.63) fall at 1 g in centimetres, but there its legs would be 0.22 m:
+    # the rate is wrong (it was named the unit before), by the factor the guess gives
+    from types import SimpleNamespace
+
+    from retime.physics.plausibility import flight_cause, unit_caution
+
+    c = flight_cause(SimpleNamespace(ratio=3.76, time_factor=1 / np.sqrt(3.76), flights=[0], seconds=0.2), 190.3,
+                     _guess(0.0376))
+    assert c.code == "frame_rate" and "in centimetres they would fall at 1 g, but with legs 0.22 m" in c.sentence
+    assert _factor(c.sentence) == pytest.approx(1 / np.sqrt(3.76), rel=0.01)
+    # a child-sized body in the unit that fits is human: the unit stays the likely cause, the rate named beside it
+    c = flight_cause(SimpleNamespace(ratio=1.48, time_factor=1 / np.sqrt(1.48), flights=[0], seconds=0.3), 119.9,
+                     _guess(0.0376))
+    assert c.code == "units" and "likely in," in c.sentence and "legs 0.55 m" in c.sentence
+    # a guess whose nearest common unit makes no human (0.004 m a unit: legs 2.0 m in cm, 0.20 m in mm) is
+    # confirmed by flights at g: no caution
+    assert unit_caution(SimpleNamespace(ratio=1.0), 120.0, _guess(0.004)) is None
+    assert unit_caution(SimpleNamespace(ratio=1.0), 120.0, _guess(0.004, leg_m=float("nan"))) is not None
+
+
+def test_a_real_jump_at_a_rate_that_fits_centimetres_is_named_a_wrong_rate():
+    # jumping.bvh (an unusual scale, 0.0376 m a unit, guessed) with its Frame Time x0.63: its flight
+    # falls at 3.76 g, at 1 g in centimetres, where its legs would be 0.22 m long
+    m = M.wrong_frame_time(_dev("bvh-dev/jumping.bvh"), 0.63)
+    c = check_clip(m)
+    assert c.verdict.codes == ["frame_rate"] and "no human's" in c.verdict.causes[0]
+    assert _factor(c.verdict.causes[0]) < 0.6  # 1.94x too fast under the guess (1.59x in inches)

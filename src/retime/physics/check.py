@@ -87,7 +87,7 @@ class ClipCheck:
             "max_residual": round(float(self.residual.max()), 4) if len(self.residual) else 0.0,
             "max_torque_excess": round(float(self.torque_excess.max()), 3) if len(self.times) else 0.0,
             "flight_share": round(float(self.flight.mean()), 4),
-            "flight_g": None if self.flight_g is None else round(self.flight_g, 3),
+            "flight_g": verdict["flight_g"],
             "flights": verdict["flights"], "time_factor": verdict["time_factor"],
             "stance_time_factor": verdict["stance_time_factor"], "stance_steps": verdict["stance_steps"],
             "median_foot_slide": round(float(np.median(slide)), 4) if slide.size else 0.0,
@@ -119,8 +119,8 @@ class ClipCheck:
         top = self.residual[self.judged]
         numbers = (f"{s['off_share']:.0%} of {which} over {OFF_RESIDUAL:.0%} body weight of residual "
                    f"(median {s['median_residual']:.2f}, max {float(top.max()) if top.size else 0.0:.2f})")
-        if s["flight_g"] is not None:
-            numbers += f"; in flight the centre of mass falls at {s['flight_g']:.2f} g"
+        if self.flight_g is not None:  # formatted from the unrounded ratio, as the causes' sentences are
+            numbers += f"; in flight the centre of mass falls at {self.flight_g:.2f} g"
         if self.physical and self.verdict.cautions:
             return f"physical as captured, with a caution: {numbers}. " + " ".join(
                 f"[{c.code}] {c.sentence}." for c in self.verdict.cautions)

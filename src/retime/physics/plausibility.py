@@ -25,6 +25,13 @@
 band on one step or on disagreeing steps (``frame_rate_unconfirmed``), and flights at g under a
 guessed, unusual length unit, which g cannot tell from a wrong rate (``units_unconfirmed``).
 
+**Unit or rate.** Flights and stance forces measure only the length unit times the frame rate
+squared: a body s times larger moving sqrt(s) times slower is the same to physics (dynamic
+similarity; on jumping.bvh the stance residual's least rate moves with the unit exactly as the
+flight's factor does). What tells a wrong unit from a wrong rate is the body's size: a unit that
+would give legs no human has (:data:`HUMAN_LEG_M`) is not the cause; where both readings give a
+human, the check does not choose for the user, and names both with their numbers.
+
 Regions are widened by the residual, so a retiming of such a clip can look "100 % feasible" while
 its physics means little: :func:`check_source` says so, and why.
 
@@ -38,6 +45,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import binary_dilation
 
+from ..motion.frame import UNIT_NAMES, UNITS
 from .ballistic import FlightGravity, FootPoints, flight_gravity, foot_points
 from .stance_rate import StanceRate, stance_rate
 
@@ -63,10 +71,14 @@ HELD_G = 0.2  # flights falling slower than this are held up, not slowed down (a
 TREADMILL_TRAVEL = 0.3  # the root travelling less than this share of the feet's floor speed: a treadmill
 TRAVEL_WINDOW_S = 1.0  # the root's travel is measured over this, so a stance's sway does not count
 BODY_HEIGHT_M = (1.0, 2.3)  # a body outside this (metres) may be read in the wrong unit
+HUMAN_LEG_M = (0.35, 1.2)  # thigh + shank (m) of any human, a small child to a very tall adult: a unit
+# that gives a leg outside this is not the file's, whatever its flights say (:func:`_human_in`)
 KNOWN_UNIT = ("sure", "declared", "given")  # unit confidences at which the length unit is not doubted
 COMMON_RATES = (24, 25, 30, 48, 50, 60, 90, 100, 120, 240)  # fps a fitted rate is snapped to ...
 UNIT_SNAP = 0.05  # a guessed unit this close to a common one that gives 1 g flights is that one
 RATE_SNAP = 0.1  # ... when this close (relative; flights measure a clip's rate to about 8 %)
+CAPTURE_RATE_TOL = 0.005  # a written rate this close to a common one is that rate (119.88 = 120/1.001 is;
+# every real file in ../shared/data is within 0.11 % of one)
 
 
 @dataclass
@@ -188,16 +200,39 @@ def _common_rate(fps: float) -> float | None:
     return float(near) if abs(near - fps) <= RATE_SNAP * near else None
 
 
-def _unit_that_fits(flight: FlightGravity, frame) -> str | None:
-    """The common length unit under which the flights fall at 1 g, when the unit was only guessed
-    (an unusual scale) and one is within :data:`UNIT_SNAP`: a scale is as likely wrong as a rate."""
-    from ..motion.frame import UNITS
-
+def _unit_that_fits(flight: FlightGravity, frame) -> tuple[str, float] | None:
+    """(name, metres per unit) of the common length unit under which the flights fall at 1 g, when
+    the unit was only guessed (an unusual scale) and one is within :data:`UNIT_SNAP`: a scale is as
+    likely wrong as a rate."""
     if frame is None or frame.unit_confidence in KNOWN_UNIT:
         return None
     fit = frame.meters_per_unit / flight.ratio
     name, mpu = min(UNITS.items(), key=lambda u: abs(np.log(u[1] / fit)))
-    return name if abs(mpu / fit - 1.0) <= UNIT_SNAP else None
+    return (name, mpu) if abs(mpu / fit - 1.0) <= UNIT_SNAP else None
+
+
+def _leg_in(frame, mpu: float) -> float:
+    """The skeleton's leg (thigh + shank, m) were 1 unit ``mpu`` metres (nan: not measured)."""
+    return float(getattr(frame, "leg_m", np.nan)) * mpu / frame.meters_per_unit
+
+
+def _human_in(frame, mpu: float) -> bool:
+    """Whether the body is of a human's size (:data:`HUMAN_LEG_M`, or of unknown size) in the unit
+    ``mpu``. Flights and stance forces measure only the unit times the frame rate squared (a body
+    scaled by s moving sqrt(s) times slower is dynamically the same), so the body's size is what
+    tells a wrong unit from a wrong rate: only when one reading is no human's."""
+    leg = _leg_in(frame, mpu)
+    return not np.isfinite(leg) or HUMAN_LEG_M[0] <= leg <= HUMAN_LEG_M[1]
+
+
+def _legs(frame, mpu: float) -> str:
+    leg = _leg_in(frame, mpu)
+    return f"legs {leg:.2f} m hip to ankle" if np.isfinite(leg) else "legs of unknown length"
+
+
+def _capture_rate(fps: float) -> bool:
+    """Whether ``fps`` is a common capture rate as written (:data:`CAPTURE_RATE_TOL`)."""
+    return any(abs(fps / r - 1.0) <= CAPTURE_RATE_TOL for r in COMMON_RATES)
 
 
 def _rate_parts(k: float, fps: float) -> tuple[str, str, str]:
@@ -217,12 +252,16 @@ def flight_cause(flight: FlightGravity, fps: float, frame) -> Cause:
     how, times, rate_fix = _rate_parts(flight.time_factor, fps)
     falls = (f"in {len(flight.flights)} flight{'s' if len(flight.flights) > 1 else ''} ({flight.seconds:.2f} s) the "
              f"centre of mass falls at {flight.ratio:.2f} g, not 1 g")
-    unit = _unit_that_fits(flight, frame)
-    if unit is not None:
+    fits = _unit_that_fits(flight, frame)
+    if fits is not None and _human_in(frame, fits[1]):
+        unit, mpu = fits
         return Cause("units", f"the length unit is likely {unit}, not {frame.meters_per_unit:.4g} m "
-                              f"({frame.unit_confidence}): {falls} (give --units {unit}); or it plays {how} "
-                              f"({times}: {rate_fix})")
+                              f"({frame.unit_confidence}): {falls} (give --units {unit}; {_legs(frame, mpu)}); or "
+                              f"it plays {how} ({times}: {rate_fix}; {_legs(frame, frame.meters_per_unit)} as read)")
     s = f"plays {how}: {times} ({rate_fix}); {falls}"
+    if fits is not None:  # a common unit would put the flights at g, but no human is that size
+        s += (f"; in {UNIT_NAMES.get(fits[0], fits[0])} they would fall at 1 g, but with {_legs(frame, fits[1])} "
+              "the body would be no human's")
     if frame is not None and not (BODY_HEIGHT_M[0] <= frame.height_m <= BODY_HEIGHT_M[1]):
         s += (f"; or the length unit is off (1 unit = {frame.meters_per_unit:.4g} m, {frame.unit_confidence}, "
               f"the body {frame.height_m:.2f} m tall: give --units)")
@@ -265,21 +304,26 @@ def stance_finding(stance: StanceRate | None, fps: float) -> tuple[Cause | None,
 
 def unit_caution(flight: FlightGravity, fps: float, frame) -> Cause | None:
     """Flights falling at g under a guessed length unit that is no common one confirm the unit only if
-    the frame rate is right (g scales with the unit and with the rate squared): when the nearest common
-    unit would make them fall outside :data:`FLIGHT_G`, a caution naming that unit and the rate it implies."""
-    from ..motion.frame import UNITS
-
+    the frame rate is right (g scales with the unit and with the rate squared, and so does every force
+    at the feet): when the nearest common unit would make them fall outside :data:`FLIGHT_G` and gives
+    a human-sized body (:func:`_human_in`), a caution naming both readings with their numbers."""
     if frame is None or frame.unit_confidence in KNOWN_UNIT or flight.ratio is None:
         return None
     name, mpu = min(UNITS.items(), key=lambda u: abs(np.log(u[1] / frame.meters_per_unit)))
     ratio = flight.ratio * mpu / frame.meters_per_unit  # the flights' g in that unit
-    if abs(mpu / frame.meters_per_unit - 1.0) <= UNIT_SNAP or FLIGHT_G[0] <= ratio <= FLIGHT_G[1]:
+    if abs(mpu / frame.meters_per_unit - 1.0) <= UNIT_SNAP or FLIGHT_G[0] <= ratio <= FLIGHT_G[1] \
+            or not _human_in(frame, mpu):
         return None
-    how, times, _ = _rate_parts(1.0 / np.sqrt(ratio), fps)
-    return Cause("units_unconfirmed", f"length unit unconfirmed: read as 1 unit = {frame.meters_per_unit:.4g} m "
-                                      f"({frame.unit_confidence}), under which the flights fall at {flight.ratio:.2f} g; "
-                                      f"in the nearest common unit, {name}, they would fall at {ratio:.2f} g and the "
-                                      f"clip would play {how} ({times}): give --units to confirm")
+    how, times, rate_fix = _rate_parts(1.0 / np.sqrt(ratio), fps)
+    written = f"the file's {fps:.1f} fps" + ("" if _capture_rate(fps) else ", no common capture rate")
+    return Cause("units_unconfirmed", "length unit unconfirmed: two readings fit, and neither flights nor stance forces "
+                                      "can tell them apart (they measure the unit times the frame rate squared): as read, "
+                                      f"1 unit = {frame.meters_per_unit:.4g} m ({frame.unit_confidence}), "
+                                      f"{_legs(frame, frame.meters_per_unit)}, the flights fall at {flight.ratio:.2f} g at "
+                                      f"{written}; in {UNIT_NAMES.get(name, name)}, the nearest common unit, "
+                                      f"{_legs(frame, mpu)}, they would fall at {ratio:.2f} g and the clip would play "
+                                      f"{how} ({times}: {rate_fix}). Give --units {name} or --units "
+                                      f"{frame.meters_per_unit:.4g} to decide")
 
 
 def _near(mask, frames: int) -> np.ndarray:

@@ -136,13 +136,15 @@ def _bearing_columns(values, corners) -> np.ndarray:
     return values * bears[:, None, :]
 
 
-def stance_rate(terms, pd0=None) -> StanceRate:
+def stance_rate(terms, pd0=None, frames=None) -> StanceRate:
     """The :class:`StanceRate` of a clip from its dynamics ``terms`` (``pd0``: their standard
-    combination, made when not given)."""
+    combination, made when not given), judged on its single-support frames, or on ``frames`` (F,)
+    bool when given (each run of them a step; ``benchmarks/unit_or_rate.py`` judges double support)."""
     pd0 = terms.combine() if pd0 is None else pd0
     spf = int(terms.samples_per_frame)
     nr = int(pd0.n_root)
-    single = single_support(np.asarray(pd0.contact)[::spf], float(terms.fps), float(terms.smoothing))
+    single = single_support(np.asarray(pd0.contact)[::spf], float(terms.fps), float(terms.smoothing)) \
+        if frames is None else np.asarray(frames, dtype=bool)
     use = np.zeros(pd0.n_samples, bool)
     use[::spf] = single
     seconds = float(use.sum()) / float(terms.fps)
