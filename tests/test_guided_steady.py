@@ -276,8 +276,8 @@ def _tiny_segment(rng, n=9, s=3, M=4):
 def _search(st, args, upper=np.inf):
     """The compiled search over the band with its Lagrangian bound, pruning above ``upper``."""
     cost_into, level, rho, lo, hi, kmin, kmax = args
-    price, to_go, _ = st.step_price(cost_into, level, rho, kmin, kmax, len(lo) - 1)
-    return st._segment_dp(*args, to_go, price, upper)
+    prices, to_go, *_ = st.step_price(cost_into, level, rho, kmin, kmax, len(lo) - 1)
+    return st._segment_dp(*args, to_go, prices, upper)
 
 
 @pytest.mark.parametrize("seed", range(6))
