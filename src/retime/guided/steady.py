@@ -29,7 +29,7 @@ penalty is measured against what the reference objects to in the uniform warp, i
 feature scale and of the clip.
 
 The dynamic programme over (fine position, last step) is exact for this objective within its band:
-the whole feasible band when it is small, else a corridor about the whole-frame warp, re-centred on
+the whole feasible band when it is small, else a corridor about the relaxation's warp, re-centred on
 its own result while that touches the corridor's edge. Its inner minimum, over the previous step
 for every step at once, is over a Monge matrix (both change penalties are convex functions of a
 difference of two sorted sequences), so its minimisers are monotone and a divide-and-conquer
@@ -70,12 +70,14 @@ DIRECT_PAIRS = 4
 SCORE_PRICE_ITERATIONS = 8
 #: at most this many relaxations to find the step price of the search's bound
 RELAXATIONS = 5
+#: and at most this many to centre the corridors of a wide band
+WIDE_RELAXATIONS = 10
 #: the price search ends when the bound is within this fraction of the objective's scale of the
 #: best a price can give
 PRICE_TOLERANCE = 1e-5
 #: the first search bounds the objective this far (a fraction of its scale) above the dual value,
 #: the next ones DEEPEN_FACTOR times further each, until a warp lies within the bound (it is then optimal)
-DEEPEN_START = 2e-5
+DEEPEN_START = 2e-6
 DEEPEN_FACTOR = 4.0
 DEEPEN_ROUNDS = 10
 
@@ -724,7 +726,13 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
     cost_into, level = _step_tables(D, S, float(a0), h, M * fine, kmin, kmax)
     rho = change_penalties(kmin, kmax, float(lam))
 
-    prices, to_go, _, dual, scale = step_price(cost_into, level, rho, kmin, kmax, M)
+    wide = int((hi - lo + 1).max()) * K * K > FULL_BAND_STATES
+    # a band searched in corridors needs the relaxation's warp as their centre: at the price where
+    # it takes M steps it is the optimum, so the price search goes on to that price
+    prices, to_go, priced_path, dual, scale = step_price(cost_into, level, rho, kmin, kmax, M,
+                                                         *((WIDE_RELAXATIONS, 0.0) if wide else ()))
+    # a relaxation's warp with M steps is optimal: its objective is the dual value
+    exact_price = priced_path is not None and len(priced_path) == M + 1
 
     def solve(blo, bhi, upper=math.inf):
         margin = 1e-9 * (abs(upper) + np.abs(prices).max() * M + 1.0)  # rounding in the bound must not cut the optimum
@@ -737,7 +745,7 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
         a little above the dual value, the search drops nearly every state; a warp found within the
         bound is the optimum (an optimal warp's states are never dropped). Else the bound goes
         further up (a warp found above it bounds it too) until one is."""
-        gap = DEEPEN_START * scale
+        gap = 0.0 if exact_price else DEEPEN_START * scale
         for _ in range(DEEPEN_ROUNDS if np.isfinite(dual) else 0):
             trial = dual + gap
             if trial >= known:
@@ -746,7 +754,7 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
             if obj <= trial:
                 return q, obj
             known = min(known, obj)
-            gap *= DEEPEN_FACTOR
+            gap = max(gap * DEEPEN_FACTOR, DEEPEN_START * scale)
         return solve(blo, bhi, known)
 
     def around(centre, radius):
@@ -755,11 +763,15 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
                               np.minimum(hi, np.ceil(centre + radius).astype(np.int64)), kmin, kmax)
         return None if np.any(blo > bhi) else (blo, bhi)
 
-    if int((hi - lo + 1).max()) * K * K <= FULL_BAND_STATES:
+    if not wide:
         q, obj = solve_bounded(lo, hi)
         return (a0 + q * h, float(obj)) if np.isfinite(obj) else (None, math.inf)
-    # a band too wide to search at once: corridors, the first about the whole-frame warp
-    centre = (np.asarray(y, dtype=float) - a0) / h
+    # a band too wide to search at once: corridors, the first about the relaxation's warp (stretched
+    # to M steps: at the best price its step count is M or near it), else the whole-frame warp's
+    if priced_path is not None:
+        centre = np.interp(np.linspace(0.0, len(priced_path) - 1, M + 1), np.arange(len(priced_path)), priced_path)
+    else:
+        centre = (np.asarray(y, dtype=float) - a0) / h
     obj = math.inf
     radius = corridor / h
     for _ in range(max_passes):
