@@ -69,7 +69,7 @@ DIRECT_PAIRS = 4
 #: cuts of the price range of the relaxation without change penalties (the first guess)
 SCORE_PRICE_ITERATIONS = 8
 #: at most this many relaxations to find the step price of the search's bound
-RELAXATIONS = 5
+RELAXATIONS = 4
 #: and at most this many to centre the corridors of a wide band
 WIDE_RELAXATIONS = 10
 #: the price search ends when the bound is within this fraction of the objective's scale of the
@@ -706,6 +706,35 @@ def points_per_step(N, M, natural, s=None, choices=FINE) -> int:
     return min(choices, key=lambda L: (round(miss(L), 9), L))
 
 
+def bounded_search(cost_into, level, rho, lo, hi, kmin, kmax, to_go, prices, dual, unit, tight=False,
+                   known=math.inf):
+    """The best warp in the band lo..hi, searched by :func:`_segment_dp` with the bounds ``to_go`` at
+    ``prices`` (:func:`step_price`); ``known``: the objective of a warp in the band, or inf.
+
+    The dual value ``dual`` bounds the objective below, and the optimum is usually just above it:
+    searched first with the bound ``unit`` above the dual value (at the dual value itself if
+    ``tight``: the price's relaxation has an optimal warp), the search drops nearly every state; a
+    warp found within the bound is the optimum (an optimal warp's states are never dropped). Else
+    the bound goes DEEPEN_FACTOR times further up (a warp found above it bounds it too) until one
+    is. Returns (fine positions, objective)."""
+    gap = 0.0 if tight else unit
+
+    def solve(upper):
+        margin = 1e-9 * (abs(upper) + np.abs(prices).max() * len(lo) + 1.0)  # rounding in the bound must not cut the optimum
+        return _segment_dp(cost_into, level, rho, lo, hi, kmin, kmax, to_go, prices, upper + margin)
+
+    for _ in range(DEEPEN_ROUNDS if np.isfinite(dual) else 0):
+        trial = dual + gap
+        if trial >= known:
+            break
+        q, obj = solve(trial)
+        if obj <= trial:
+            return q, obj
+        known = min(known, obj)
+        gap = max(gap * DEEPEN_FACTOR, unit)
+    return solve(known)
+
+
 def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passes=8):
     """The steady warp of one segment (grid frames a0 -> a1 over len(y) - 1 steps) near path y:
     (fractional grid frames, objective)."""
@@ -734,28 +763,9 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
     # a relaxation's warp with M steps is optimal: its objective is the dual value
     exact_price = priced_path is not None and len(priced_path) == M + 1
 
-    def solve(blo, bhi, upper=math.inf):
-        margin = 1e-9 * (abs(upper) + np.abs(prices).max() * M + 1.0)  # rounding in the bound must not cut the optimum
-        return _segment_dp(cost_into, level, rho, blo, bhi, kmin, kmax, to_go, prices, upper + margin)
-
     def solve_bounded(blo, bhi, known=math.inf):
-        """The best warp in the band blo..bhi (``known``: the objective of a warp in it, or inf).
-
-        The dual value bounds it below, and it is usually just above: searched first with the bound
-        a little above the dual value, the search drops nearly every state; a warp found within the
-        bound is the optimum (an optimal warp's states are never dropped). Else the bound goes
-        further up (a warp found above it bounds it too) until one is."""
-        gap = 0.0 if exact_price else DEEPEN_START * scale
-        for _ in range(DEEPEN_ROUNDS if np.isfinite(dual) else 0):
-            trial = dual + gap
-            if trial >= known:
-                break
-            q, obj = solve(blo, bhi, trial)
-            if obj <= trial:
-                return q, obj
-            known = min(known, obj)
-            gap = max(gap * DEEPEN_FACTOR, DEEPEN_START * scale)
-        return solve(blo, bhi, known)
+        return bounded_search(cost_into, level, rho, blo, bhi, kmin, kmax, to_go, prices, dual,
+                              DEEPEN_START * scale, exact_price, known)
 
     def around(centre, radius):
         """The band cut to ``radius`` fine points about fine positions ``centre`` (None: no warp in it)."""
