@@ -214,6 +214,13 @@ def _step_tables(D, S, a0, h, n_fine, kmin, kmax):
     P = _change_integrals(S)
     cost_into = np.empty((n_fine + 1, K))
     level = np.empty((n_fine + 1, K))
+    # c = D at the step's middle and speed, as _bilinear reads it (the speed's columns once per step)
+    col0 = np.empty(K, dtype=np.int64)
+    col_w = np.empty(K)
+    for b in range(K):
+        v = min(max((kmin + b) * h, 1.0), float(s))
+        col0[b] = min(int(v) - 1, s - 2) if s > 1 else 0
+        col_w[b] = v - 1.0 - col0[b] if s > 1 else 0.0
     for q in range(n_fine + 1):
         t = min(max(a0 + q * h, 0.0), n - 1.0)  # the triple's middle frame is q
         j0 = min(int(t), n - 2) if n > 1 else 0
@@ -221,7 +228,14 @@ def _step_tables(D, S, a0, h, n_fine, kmin, kmax):
         j1 = min(j0 + 1, n - 1)
         for b in range(K):
             k = kmin + b
-            cost_into[q, b] = _bilinear(D, a0 + (q - 0.5 * k) * h, k * h)
+            tc = min(max(a0 + (q - 0.5 * k) * h, 0.0), n - 1.0)
+            i0 = min(int(tc), n - 2) if n > 1 else 0
+            fc = tc - i0 if n > 1 else 0.0
+            i1 = min(i0 + 1, n - 1)
+            c0, fv = col0[b], col_w[b]
+            c1 = min(c0 + 1, s - 1)
+            cost_into[q, b] = ((D[i0, c0] * (1.0 - fv) + D[i0, c1] * fv) * (1.0 - fc)
+                               + (D[i1, c0] * (1.0 - fv) + D[i1, c1] * fv) * fc)
             v = max(k * h, 1.0)
             c = min(int(v), s)  # the whole speed at or below v, at most the last
             x = v - c
@@ -615,9 +629,11 @@ def _next_price(history, M, spread, slope):
     if len(history) >= 2 and history[-2][1] != count:
         slope = (count - history[-2][1]) / (price - history[-2][0])
     step = (M - count) / slope if slope < 0 else 0.0  # (the count falls as the price rises)
-    # towards M, by at least a tenth and at most twice the spread
+    # towards M, by at least a tenth of the spread and at most twice it, or twice the last step
+    # (a first guess far off is left in a few steps)
+    longest = 2.0 * max(spread, abs(price - history[-2][0]) if len(history) >= 2 else 0.0)
     direction = 1.0 if count > M else -1.0
-    return price + direction * min(max(abs(step), 0.1 * spread), 2.0 * spread)
+    return price + direction * min(max(abs(step), 0.1 * spread), longest)
 
 
 def _nearest_either_side(history, M):
@@ -642,7 +658,9 @@ def step_price(cost_into, level, rho, kmin, kmax, M, relaxations=RELAXATIONS, to
     """The step price of :func:`_priced_to_go` whose bound is best (its dual value, the relaxation's
     least cost less price M, is the largest; at most the optimum whatever the price). The price at
     which the relaxation without change penalties (:func:`_priced_scores`, K times cheaper) takes M
-    steps is the first guess; then at most ``relaxations`` relaxations, each at the price where the
+    steps is the first guess; then ``relaxations`` relaxations (more while they do not lie on
+    both sides of M steps, or the last two did not follow that, up to WIDE_RELAXATIONS), each at
+    the price where the
     dual's supergradients say it peaks (:func:`_next_price`), ending when a relaxation takes M steps
     (its warp is then optimal) or the dual value is within ``tolerance`` (times the objective's
     scale) of the most it can reach. Returns (prices (R,), their bounds B (R, n_fine + 1, K): the
@@ -664,8 +682,8 @@ def step_price(cost_into, level, rho, kmin, kmax, M, relaxations=RELAXATIONS, to
     # how fast the count falls with the price: the scores' count half a spread either side
     fewer, more = scores_count(price + 0.5 * spread), scores_count(price - 0.5 * spread)
     slope = (fewer - more) / spread if fewer is not None and more is not None and fewer < more else -M / spread
-    best, history, bounds = None, [], {}
-    for _ in range(relaxations):
+    best, history, bounds, bracketed_at = None, [], {}, None
+    while True:
         B, total, count, path = _priced_to_go(cost_into, level, rho, kmin, kmax, price)
         if not np.isfinite(total):
             break  # no warp at all (whatever the price)
@@ -677,6 +695,13 @@ def step_price(cost_into, level, rho, kmin, kmax, M, relaxations=RELAXATIONS, to
         keep = {best[1], *[h[0] for h in _nearest_either_side(history, M) if h is not None]}
         bounds = {k: v for k, v in bounds.items() if k in keep}  # (a long clip's bounds are large)
         if count == M or _dual_ceiling(history, M) - best[0] <= tolerance * scale:
+            break
+        # a bound from one side of M steps only is weak: the search goes on to bracket M, and then
+        # for two more prices at least
+        if bracketed_at is None and None not in _nearest_either_side(history, M):
+            bracketed_at = len(history)
+        if len(history) >= max(relaxations, WIDE_RELAXATIONS) or (
+                bracketed_at is not None and len(history) >= max(relaxations, bracketed_at + 2)):
             break
         price = _next_price(history, M, spread, slope)
     if best is None:
