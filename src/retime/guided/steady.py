@@ -68,9 +68,10 @@ DIRECT_STEPS = 12
 DIRECT_PAIRS = 4
 #: cuts of the price range of the relaxation without change penalties (the first guess)
 SCORE_PRICE_ITERATIONS = 8
-#: at most this many relaxations to find the step price of the search's bound
+#: relaxations to find the step price of the search's bound (more until their prices lie on both
+#: sides of the step count and two follow)
 RELAXATIONS = 4
-#: and at most this many to centre the corridors of a wide band
+#: at most this many in all, and as many to centre the corridors of a wide band
 WIDE_RELAXATIONS = 10
 #: the price search ends when the bound is within this fraction of the objective's scale of the
 #: best a price can give
