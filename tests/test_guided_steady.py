@@ -276,8 +276,8 @@ def _tiny_segment(rng, n=9, s=3, M=4):
 def _search(st, args, upper=np.inf):
     """The compiled search over the band with its Lagrangian bound, pruning above ``upper``."""
     cost_into, level, rho, lo, hi, kmin, kmax = args
-    price, to_go, _ = st.step_price(cost_into, level, rho, kmin, kmax, len(lo) - 1)
-    return st._segment_dp(*args, to_go, price, upper)
+    prices, to_go, *_ = st.step_price(cost_into, level, rho, kmin, kmax, len(lo) - 1)
+    return st._segment_dp(*args, to_go, prices, upper)
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -388,6 +388,30 @@ def test_segment_search_matches_its_numpy_twin_on_random_tables(seed):
     q_np, obj_np = st.segment_dp_numpy(*args)
     for upper in (np.inf, obj_np * (1 + 1e-12)):
         q, obj = _search(st, args, upper)
+        assert obj == pytest.approx(obj_np, rel=1e-12)
+        assert np.array_equal(q, q_np)
+
+
+@pytest.mark.parametrize("case", ["jump 0.6", "jump 1.5", "random 0", "random 1"])
+def test_deepening_search_finds_the_twins_optimum(jump, case):
+    """The search that starts with its bound at (or just above) the dual value and raises it until a
+    warp lies within: the plain twin's optimum and warp, whatever the first bound (the dual value
+    itself, which a warp can only meet when the duality gap is 0, or a thousandth of it), and with a
+    known warp's objective as a cap."""
+    from retime.guided import steady as st
+
+    if case.startswith("jump"):
+        args = _real_segment(jump, float(case.split()[1]))
+    else:
+        t = _tiny_segment(np.random.default_rng(200 + int(case.split()[1])), n=40, s=5, M=14)
+        args = (*t["tables"], t["lo"], t["hi"], t["kmin"], t["kmax"])
+    q_np, obj_np = st.segment_dp_numpy(*args)
+    cost_into, level, rho, lo, hi, kmin, kmax = args
+    prices, to_go, _, dual, _ = st.step_price(cost_into, level, rho, kmin, kmax, len(lo) - 1)
+    assert dual <= obj_np * (1 + 1e-12)
+    for unit, tight, known in ((1e-3 * abs(dual), True, np.inf), (1e-6, False, np.inf),
+                               (1e-6, False, obj_np * 1.5)):
+        q, obj = st.bounded_search(*args, to_go, prices, dual, unit, tight, known)
         assert obj == pytest.approx(obj_np, rel=1e-12)
         assert np.array_equal(q, q_np)
 

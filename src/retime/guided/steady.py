@@ -29,17 +29,18 @@ penalty is measured against what the reference objects to in the uniform warp, i
 feature scale and of the clip.
 
 The dynamic programme over (fine position, last step) is exact for this objective within its band:
-the whole feasible band when it is small, else a corridor about the best bounding warp (below),
-re-centred on its own result while that touches the corridor's edge. Its inner minimum, over the previous step
+the whole feasible band when it is small, else a corridor about the relaxation's warp, re-centred on
+its own result while that touches the corridor's edge. Its inner minimum, over the previous step
 for every step at once, is over a Monge matrix (both change penalties are convex functions of a
 difference of two sorted sequences), so its minimisers are monotone and a divide-and-conquer
-search finds them exactly reading O(K log K) of the K^2 entries (K step choices). On a large band
-it first bounds the optimum: below, by a Lagrangian relaxation of the step count (a price per step,
-any number of steps: one pass over the fine positions, :func:`_priced_to_go`, the price by
-bisection), which bounds what is left from every state; above, by the best warps of narrow
-corridors about the relaxation's warp and the whole-frame warp. A state whose cost so far plus what is left exceeds the
-upper bound lies on no optimal warp and is dropped, so the search stays exact and reads a few per
-cent of the band.
+search finds them exactly reading O(K log K) of the K^2 entries (K step choices). It first bounds
+the optimum below by a Lagrangian relaxation of the step count (a price per step, any number of
+steps: one pass over the fine positions, :func:`_priced_to_go`), which bounds what is left from
+every state; the price by cutting-plane steps on the dual, and the bounds of two prices, either
+side of the step count, taken together. The search then drops a state whose cost so far plus what
+is left exceeds a bound just above the dual value (the duality gap is 0.003-0.1 % here); a warp
+found within that bound is the optimum, else the bound goes up until one is. So it stays exact
+and reads a small part of the band.
 """
 
 from __future__ import annotations
@@ -60,15 +61,26 @@ FINE = range(8, 13)
 FULL_BAND_STATES = 4_000_000
 #: corridor half-width around the discrete warp, in grid frames
 CORRIDOR = 24
-#: half-widths, in grid frames, of the narrow corridors whose best warps bound the wide search's objective
-BOUND_CORRIDORS = (2, 8, 20)
 #: with at most this many step choices the inner minimum reads every pair (no monotone search)
 DIRECT_STEPS = 12
-#: below this many band positions (summed over the output frames) per fine point the search runs
-#: without bounds: finding them would cost more than they save
-PRUNE_ROWS_PER_POINT = 40
-#: cuts of the step price's range for the search's bound (after the cheaper relaxation's price)
-STEP_PRICE_ITERATIONS = 6
+#: the search reads every pair of a row's live steps and landing steps when they are at most this
+#: many times the step choices (the monotone search reads about K log K)
+DIRECT_PAIRS = 4
+#: cuts of the price range of the relaxation without change penalties (the first guess)
+SCORE_PRICE_ITERATIONS = 8
+#: relaxations to find the step price of the search's bound (more until their prices lie on both
+#: sides of the step count and two follow)
+RELAXATIONS = 4
+#: at most this many in all, and as many to centre the corridors of a wide band
+WIDE_RELAXATIONS = 10
+#: the price search ends when the bound is within this fraction of the objective's scale of the
+#: best a price can give
+PRICE_TOLERANCE = 1e-5
+#: the first search bounds the objective this far (a fraction of its scale) above the dual value,
+#: the next ones DEEPEN_FACTOR times further each, until a warp lies within the bound (it is then optimal)
+DEEPEN_START = 2e-6
+DEEPEN_FACTOR = 4.0
+DEEPEN_ROUNDS = 10
 
 
 @dataclass
@@ -173,45 +185,67 @@ def _fine_band(lb, ub, kmin, kmax):
 
 
 @njit(cache=True)
-def _change_level(S, t, v):
-    """A(t, v) = the integral over speed from 1 to v of a(t, u) du: a (the change-cost table at
-    grid time t, linear between whole speeds, constant beyond the last) summed over the speeds a
-    change passes through, so that |A(t, v') - A(t, v)| prices a change from v to v' one grid frame
-    per output frame at a time, each at its own speed."""
-    s = S.shape[1]
-    v = max(v, 1.0)
-    total = 0.0
-    c = 1
-    lower = _bilinear(S, t, 1.0)
-    while c < s and c + 1 <= v:
-        upper = _bilinear(S, t, c + 1.0)
-        total += 0.5 * (lower + upper)
-        lower = upper
-        c += 1
-    x = v - c  # the part of the last cell (or beyond the table, where a stays at its last value)
-    if c < s:
-        upper = _bilinear(S, t, c + 1.0)
-        total += x * lower + 0.5 * x * x * (upper - lower)
-    else:
-        total += x * lower
-    return total
+def _change_integrals(S):
+    """(n, s) the integral over speed from 1 to c + 1 of a(j, u) du at every grid frame j (column c):
+    a (the change-cost table's row, linear between whole speeds) summed cell by cell, once, so that
+    :func:`_step_tables` reads a change's price instead of summing the cells again."""
+    n, s = S.shape
+    P = np.zeros((n, s))
+    for j in range(n):
+        for c in range(1, s):
+            P[j, c] = P[j, c - 1] + 0.5 * (S[j, c - 1] + S[j, c])
+    return P
 
 
 @njit(cache=True)
 def _step_tables(D, S, a0, h, n_fine, kmin, kmax):
     """The scores of the steps by fine position q, (n_fine + 1, K) each: ``c`` of the step of
-    kmin + b fine points that ends at q, and ``A`` (:func:`_change_level`) of that step's speed at q,
-    where a change from the step before it happens. They depend on the position and the step alone,
-    not on the output frame, so the search reads them instead of interpolating them again at every
-    output frame whose band holds q."""
+    kmin + b fine points that ends at q, and ``A(t, v)`` of that step's speed at q, where a change
+    from the step before it happens. They depend on the position and the step alone, not on the
+    output frame, so the search reads them instead of interpolating them again at every output
+    frame whose band holds q.
+
+    A(t, v) is the integral over speed from 1 to v of a(t, u) du: a (the change-cost table S at grid
+    time t, linear between whole speeds, constant beyond the last) summed over the speeds a change
+    passes through, so that |A(t, v') - A(t, v)| prices a change from v to v' one grid frame per
+    output frame at a time, each at its own speed. It is linear in the table, so at a fractional t
+    it is the two neighbouring rows' integrals interpolated."""
+    n, s = S.shape
     K = kmax - kmin + 1
+    P = _change_integrals(S)
     cost_into = np.empty((n_fine + 1, K))
     level = np.empty((n_fine + 1, K))
+    # c = D at the step's middle and speed, as _bilinear reads it (the speed's columns once per step)
+    col0 = np.empty(K, dtype=np.int64)
+    col_w = np.empty(K)
+    for b in range(K):
+        v = min(max((kmin + b) * h, 1.0), float(s))
+        col0[b] = min(int(v) - 1, s - 2) if s > 1 else 0
+        col_w[b] = v - 1.0 - col0[b] if s > 1 else 0.0
     for q in range(n_fine + 1):
+        t = min(max(a0 + q * h, 0.0), n - 1.0)  # the triple's middle frame is q
+        j0 = min(int(t), n - 2) if n > 1 else 0
+        ft = t - j0 if n > 1 else 0.0
+        j1 = min(j0 + 1, n - 1)
         for b in range(K):
             k = kmin + b
-            cost_into[q, b] = _bilinear(D, a0 + (q - 0.5 * k) * h, k * h)
-            level[q, b] = _change_level(S, a0 + q * h, k * h)  # the triple's middle frame is q
+            tc = min(max(a0 + (q - 0.5 * k) * h, 0.0), n - 1.0)
+            i0 = min(int(tc), n - 2) if n > 1 else 0
+            fc = tc - i0 if n > 1 else 0.0
+            i1 = min(i0 + 1, n - 1)
+            c0, fv = col0[b], col_w[b]
+            c1 = min(c0 + 1, s - 1)
+            cost_into[q, b] = ((D[i0, c0] * (1.0 - fv) + D[i0, c1] * fv) * (1.0 - fc)
+                               + (D[i1, c0] * (1.0 - fv) + D[i1, c1] * fv) * fc)
+            v = max(k * h, 1.0)
+            c = min(int(v), s)  # the whole speed at or below v, at most the last
+            x = v - c
+            at0 = P[j0, c - 1] + x * S[j0, c - 1]  # the integral to v in rows j0 and j1
+            at1 = P[j1, c - 1] + x * S[j1, c - 1]
+            if c < s:  # a linear between speeds c and c + 1 (beyond the last speed a constant)
+                at0 += 0.5 * x * x * (S[j0, c] - S[j0, c - 1])
+                at1 += 0.5 * x * x * (S[j1, c] - S[j1, c - 1])
+            level[q, b] = at0 * (1.0 - ft) + at1 * ft
     return cost_into, level
 
 
@@ -334,15 +368,27 @@ def _priced_to_go(cost_into, level, rho, kmin, kmax, price):
     return B, total, count, path
 
 
+@njit(cache=True, inline="always")
+def _bound(to_go, shift, q, a):
+    """The bound on what is left from state (q, a): the largest of the relaxations' to_go[r, q, a]
+    less their prices of the steps left (``shift``)."""
+    best = to_go[0, q, a] - shift[0]
+    for r in range(1, to_go.shape[0]):
+        best = max(best, to_go[r, q, a] - shift[r])
+    return best
+
+
 @njit(cache=True)
-def _segment_dp(cost_into, level, rho, lo, hi, kmin, kmax, to_go, price, upper):
+def _segment_dp(cost_into, level, rho, lo, hi, kmin, kmax, to_go, prices, upper):
     """Exact minimiser over the band of the steady objective for one segment.
 
     Fine position q is grid time a0 + q h; a step of k fine points plays k h grid frames per output
     frame; cost_into, level: :func:`_step_tables`; rho: :func:`change_penalties`. Each
     state (fine position, last step) of the previous output frame hands on to the states one step
-    further, all steps at once by :func:`_monotone_min`. to_go, price: :func:`_priced_to_go`'s bound
-    and its step price; upper: at least the objective of some warp in the band (inf if none is
+    further, all steps at once by :func:`_monotone_min`. to_go (R, n_fine + 1, K), prices (R,):
+    :func:`_priced_to_go`'s bounds at R step prices, and the prices (one price below the best and
+    one above bound a state from either side: too few steps left for its position, or too many);
+    upper: at least the objective of some warp in the band (inf if none is
     known, or a margin for rounding). A state whose cost so far plus the bound on what is left
     exceeds ``upper`` lies on no optimal warp and hands nothing on; those of an optimal warp always
     do, so the result stays exact. Returns (fine positions (m,), objective)."""
@@ -363,14 +409,21 @@ def _segment_dp(cost_into, level, rho, lo, hi, kmin, kmax, to_go, price, upper):
     cur_stamp = np.full(wmax, -1, dtype=np.int64)
     prev_least = np.empty(wmax)  # a valid row's least entry
     cur_least = np.empty(wmax)
-    least_to_go = np.empty(to_go.shape[0])
-    for q in range(to_go.shape[0]):
-        least_to_go[q] = to_go[q].min()
+    R = to_go.shape[0]
+    least_to_go = np.empty((R, to_go.shape[1]))
+    for r in range(R):
+        for q in range(to_go.shape[1]):
+            least_to_go[r, q] = to_go[r, q].min()
+    shift = np.empty(R)  # the prices of the steps left after a state of the previous row
+    after = np.empty(R)  # and after one of this row
     val = np.empty(K)
     arg = np.empty(K, dtype=np.int64)
     stack = np.empty((2 * K + 2, 4), dtype=np.int64)
     alive = np.empty(K)
+    live = np.empty(K, dtype=np.int64)  # a row's steps that can still lie on a warp beating the bound
+    lands = np.empty(K, dtype=np.int64)  # the steps from it whose states can too
     # position 1: the first step, from fine position 0, has no predecessor to change from
+    prev_first, prev_last = wmax, -1  # the valid rows lie in prev_first..prev_last
     for q in range(lo[1], hi[1] + 1):
         k = q - lo[0]
         if kmin <= k <= kmax:
@@ -379,36 +432,77 @@ def _segment_dp(cost_into, level, rho, lo, hi, kmin, kmax, to_go, price, upper):
             prev[w, k - kmin] = cost_into[q, k - kmin]
             prev_stamp[w] = 1
             prev_least[w] = cost_into[q, k - kmin]
+            prev_first, prev_last = min(prev_first, w), max(prev_last, w)
     for p in range(2, m):
-        left = price * (m - p)  # the bound's price for the steps after this row's state
-        for wp in range(hi[p - 1] - lo[p - 1] + 1):
+        for r in range(R):
+            shift[r] = prices[r] * (m - p)
+            after[r] = prices[r] * (m - 1 - p)
+        cur_first, cur_last = wmax, -1
+        for wp in range(prev_first, prev_last + 1):
             qp = lo[p - 1] + wp
-            if prev_stamp[wp] != p - 1 or not prev_least[wp] + (least_to_go[qp] - left) <= upper:
-                continue  # no warp reaches this position, or none through it can beat the bound
-            # the steps that land in this output frame's band
-            b0 = max(0, lo[p] - qp - kmin)
-            b1 = min(K - 1, hi[p] - qp - kmin)
-            if b0 > b1:
-                continue
+            if prev_stamp[wp] != p - 1:
+                continue  # no warp reaches this position
+            row_bound = least_to_go[0, qp] - shift[0]
+            for r in range(1, R):
+                row_bound = max(row_bound, least_to_go[r, qp] - shift[r])
+            if not prev_least[wp] + row_bound <= upper:
+                continue  # no warp through it can beat the bound
             row = prev[wp]
+            n_live = 0
+            least = INF
             for a in range(K):
-                alive[a] = row[a] if row[a] + (to_go[qp, a] - left) <= upper else INF
-            _monotone_min(alive, rho, level[qp], b0, b1, val, arg, stack)
-            for b in range(b0, b1 + 1):
-                if arg[b] >= 0:
-                    q = qp + kmin + b
-                    w = q - lo[p]
-                    if cur_stamp[w] != p:
-                        cur[w, :] = INF
-                        cur_stamp[w] = p
-                        cur_least[w] = INF
-                    v = val[b] + cost_into[q, b]
-                    cur[w, b] = v
-                    cur_least[w] = min(cur_least[w], v)
-                    bp[offs[p] + w * K + b] = arg[b]
+                if row[a] < INF and row[a] + _bound(to_go, shift, qp, a) <= upper:
+                    live[n_live] = a
+                    n_live += 1
+                    least = min(least, row[a])
+            # the steps that land in this output frame's band, in a state that the least cost so far
+            # (every change costs at least 0) can bring within the bound
+            n_lands = 0
+            for b in range(max(0, lo[p] - qp - kmin), min(K - 1, hi[p] - qp - kmin) + 1):
+                q = qp + kmin + b
+                if least + cost_into[q, b] + _bound(to_go, after, q, b) <= upper:
+                    lands[n_lands] = b
+                    n_lands += 1
+            if n_lands == 0:
+                continue
+            if n_live * n_lands <= DIRECT_PAIRS * K:  # few pairs: read them all
+                lq = level[qp]
+                for i in range(n_lands):
+                    b = lands[i]
+                    best = INF
+                    at = -1
+                    for j in range(n_live):
+                        a = live[j]
+                        v = row[a] + rho[b, a] + abs(lq[b] - lq[a])
+                        if v < best:
+                            best = v
+                            at = a
+                    val[b] = best
+                    arg[b] = at
+            else:
+                alive[:] = INF
+                for j in range(n_live):
+                    alive[live[j]] = row[live[j]]
+                _monotone_min(alive, rho, level[qp], lands[0], lands[n_lands - 1], val, arg, stack)
+            for i in range(n_lands):
+                b = lands[i]
+                q = qp + kmin + b
+                v = val[b] + cost_into[q, b]
+                if arg[b] < 0 or not v + _bound(to_go, after, q, b) <= upper:
+                    continue
+                w = q - lo[p]
+                if cur_stamp[w] != p:
+                    cur[w, :] = INF
+                    cur_stamp[w] = p
+                    cur_least[w] = INF
+                    cur_first, cur_last = min(cur_first, w), max(cur_last, w)
+                cur[w, b] = v  # (a state is reached from one previous position only)
+                cur_least[w] = min(cur_least[w], v)
+                bp[offs[p] + w * K + b] = arg[b]
         prev, cur = cur, prev
         prev_stamp, cur_stamp = cur_stamp, prev_stamp
         prev_least, cur_least = cur_least, prev_least
+        prev_first, prev_last = cur_first, cur_last
     last = hi[m - 1] - lo[m - 1]
     best = INF
     bb = -1
@@ -522,37 +616,101 @@ def _bisect_price(count_at, M, lo, hi, top, iterations):
     return lo, hi
 
 
-def step_price(cost_into, level, rho, kmin, kmax, M, iterations=STEP_PRICE_ITERATIONS):
+def _next_price(history, M, spread, slope):
+    """The next step price to relax at, from the (price, count, dual value) triples tried so far: where
+    the two nearest prices on either side of M steps say the dual value peaks (its supergradients,
+    count - M, cross), kept inside their range; from one side, a secant step on the count (``slope``,
+    the scores' count per unit price, until two prices are known)."""
+    below, above = _nearest_either_side(history, M)
+    if below is not None and above is not None:
+        (pa, ca, da), (pb, cb, db) = below, above
+        peak = (db - da + (ca - M) * pa - (cb - M) * pb) / (ca - cb)
+        return min(max(peak, pa + 0.05 * (pb - pa)), pb - 0.05 * (pb - pa))
+    price, count = history[-1][0], history[-1][1]
+    if len(history) >= 2 and history[-2][1] != count:
+        slope = (count - history[-2][1]) / (price - history[-2][0])
+    step = (M - count) / slope if slope < 0 else 0.0  # (the count falls as the price rises)
+    # towards M, by at least a tenth of the spread and at most twice it, or twice the last step
+    # (a first guess far off is left in a few steps)
+    longest = 2.0 * max(spread, abs(price - history[-2][0]) if len(history) >= 2 else 0.0)
+    direction = 1.0 if count > M else -1.0
+    return price + direction * min(max(abs(step), 0.1 * spread), longest)
+
+
+def _nearest_either_side(history, M):
+    """Of the (price, count, dual value) tried, the highest price with more than M steps and the
+    lowest with fewer (None where there is none)."""
+    return (max((h for h in history if h[1] > M), default=None),
+            min((h for h in history if h[1] < M), default=None))
+
+
+def _dual_ceiling(history, M):
+    """The most the dual value can reach (its supergradient lines at the nearest prices either side
+    of M steps, where they cross), or inf while the prices do not bracket M."""
+    below, above = _nearest_either_side(history, M)
+    if below is None or above is None:
+        return math.inf
+    (pa, ca, da), (pb, cb, db) = below, above
+    peak = (db - da + (ca - M) * pa - (cb - M) * pb) / (ca - cb)
+    return da + (ca - M) * (peak - pa)
+
+
+def step_price(cost_into, level, rho, kmin, kmax, M, relaxations=RELAXATIONS, tolerance=PRICE_TOLERANCE):
     """The step price of :func:`_priced_to_go` whose bound is best (its dual value, the relaxation's
-    least cost less price M, is the largest; at most the optimum whatever the price): the price at
-    which the relaxation without change penalties (:func:`_priced_scores`) takes M steps first, then
-    ``iterations`` cuts of a range a quarter of it wide each way for the whole relaxation's.
-    Returns (price, its bound B, the relaxation's warp as fine positions, or None if it has no
-    finite cost)."""
+    least cost less price M, is the largest; at most the optimum whatever the price). The price at
+    which the relaxation without change penalties (:func:`_priced_scores`, K times cheaper) takes M
+    steps is the first guess; then ``relaxations`` relaxations (more while they do not lie on
+    both sides of M steps, or the last two did not follow that, up to WIDE_RELAXATIONS), each at
+    the price where the
+    dual's supergradients say it peaks (:func:`_next_price`), ending when a relaxation takes M steps
+    (its warp is then optimal) or the dual value is within ``tolerance`` (times the objective's
+    scale) of the most it can reach. Returns (prices (R,), their bounds B (R, n_fine + 1, K): the
+    best price's, and the nearest price's on the other side of M steps (its bound is the larger
+    where a state has too few steps left for its position, or too many), the best relaxation's warp
+    as fine positions or None if it has no finite cost, the dual value (-inf if none), the scale)."""
     finite = cost_into[np.isfinite(cost_into)]
     width = 4.0 * float(np.median(finite)) + 1e-6 if finite.size else 1.0
     top = 4.0 * float(finite.max()) + 1.0 if finite.size else 1.0
+    scale = 0.25 * width * M  # about the objective of M steps at the median score
 
     def scores_count(price):
         total, count = _priced_scores(cost_into, kmin, kmax, price)
         return int(count) if np.isfinite(total) else None
 
-    best = None
-
-    def relax(price):
-        nonlocal best
+    lo, hi = _bisect_price(scores_count, M, -width, width, top, SCORE_PRICE_ITERATIONS)
+    price = 0.5 * (lo + hi)
+    spread = 0.25 * abs(price) + 0.01 * width
+    # how fast the count falls with the price: the scores' count half a spread either side
+    fewer, more = scores_count(price + 0.5 * spread), scores_count(price - 0.5 * spread)
+    slope = (fewer - more) / spread if fewer is not None and more is not None and fewer < more else -M / spread
+    best, history, bounds, bracketed_at = None, [], {}, None
+    while True:
         B, total, count, path = _priced_to_go(cost_into, level, rho, kmin, kmax, price)
-        if np.isfinite(total) and (best is None or total - price * M > best[0]):
-            best = (total - price * M, price, B, path)
-        return count if np.isfinite(total) else None
-
-    lo, hi = _bisect_price(scores_count, M, -width, width, top, 40)
-    guess = 0.5 * (lo + hi)
-    spread = 0.25 * abs(guess) + 0.01 * width
-    _bisect_price(relax, M, guess - spread, guess + spread, top, iterations)
+        if not np.isfinite(total):
+            break  # no warp at all (whatever the price)
+        dual = total - price * M
+        if best is None or dual > best[0]:
+            best = (dual, price, int(count), path)
+        history.append((price, int(count), dual))
+        bounds[price] = B
+        keep = {best[1], *[h[0] for h in _nearest_either_side(history, M) if h is not None]}
+        bounds = {k: v for k, v in bounds.items() if k in keep}  # (a long clip's bounds are large)
+        if count == M or _dual_ceiling(history, M) - best[0] <= tolerance * scale:
+            break
+        # a bound from one side of M steps only is weak: the search goes on to bracket M, and then
+        # for two more prices at least
+        if bracketed_at is None and None not in _nearest_either_side(history, M):
+            bracketed_at = len(history)
+        if len(history) >= max(relaxations, WIDE_RELAXATIONS) or (
+                bracketed_at is not None and len(history) >= max(relaxations, bracketed_at + 2)):
+            break
+        price = _next_price(history, M, spread, slope)
     if best is None:
-        return 0.0, np.zeros((cost_into.shape[0], kmax - kmin + 1)), None
-    return best[1], best[2], best[3]
+        return np.zeros(1), np.zeros((1, cost_into.shape[0], kmax - kmin + 1)), None, -math.inf, scale
+    prices = [best[1]]
+    other = [h for h in _nearest_either_side(history, M) if h is not None and (h[1] - M) * (best[2] - M) < 0]
+    prices += [other[0][0]] if other else []
+    return np.array(prices), np.stack([bounds[x] for x in prices]), best[3], best[0], scale
 
 
 def step_range(N, M, L, s):
@@ -572,6 +730,35 @@ def points_per_step(N, M, natural, s=None, choices=FINE) -> int:
         kmin, kmax = step_range(N, M, L, s if s is not None else N)  # no step passes the whole segment
         return abs(x - min(max(round(x), kmin), kmax) if kmin <= kmax else math.inf)
     return min(choices, key=lambda L: (round(miss(L), 9), L))
+
+
+def bounded_search(cost_into, level, rho, lo, hi, kmin, kmax, to_go, prices, dual, unit, tight=False,
+                   known=math.inf):
+    """The best warp in the band lo..hi, searched by :func:`_segment_dp` with the bounds ``to_go`` at
+    ``prices`` (:func:`step_price`); ``known``: the objective of a warp in the band, or inf.
+
+    The dual value ``dual`` bounds the objective below, and the optimum is usually just above it:
+    searched first with the bound ``unit`` above the dual value (at the dual value itself if
+    ``tight``: the price's relaxation has an optimal warp), the search drops nearly every state; a
+    warp found within the bound is the optimum (an optimal warp's states are never dropped). Else
+    the bound goes DEEPEN_FACTOR times further up (a warp found above it bounds it too) until one
+    is. Returns (fine positions, objective)."""
+    gap = 0.0 if tight else unit
+
+    def solve(upper):
+        margin = 1e-9 * (abs(upper) + np.abs(prices).max() * len(lo) + 1.0)  # rounding in the bound must not cut the optimum
+        return _segment_dp(cost_into, level, rho, lo, hi, kmin, kmax, to_go, prices, upper + margin)
+
+    for _ in range(DEEPEN_ROUNDS if np.isfinite(dual) else 0):
+        trial = dual + gap
+        if trial >= known:
+            break
+        q, obj = solve(trial)
+        if obj <= trial:
+            return q, obj
+        known = min(known, obj)
+        gap = max(gap * DEEPEN_FACTOR, unit)
+    return solve(known)
 
 
 def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passes=8):
@@ -594,14 +781,17 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
     cost_into, level = _step_tables(D, S, float(a0), h, M * fine, kmin, kmax)
     rho = change_penalties(kmin, kmax, float(lam))
 
-    if int((hi - lo + 1).sum()) < PRUNE_ROWS_PER_POINT * M * fine:  # a small band: search it all at once
-        price, to_go, priced_path = 0.0, np.zeros((M * fine + 1, K)), None
-    else:
-        price, to_go, priced_path = step_price(cost_into, level, rho, kmin, kmax, M)
+    wide = int((hi - lo + 1).max()) * K * K > FULL_BAND_STATES
+    # a band searched in corridors needs the relaxation's warp as their centre: at the price where
+    # it takes M steps it is the optimum, so the price search goes on to that price
+    prices, to_go, priced_path, dual, scale = step_price(cost_into, level, rho, kmin, kmax, M,
+                                                         *((WIDE_RELAXATIONS, 0.0) if wide else ()))
+    # a relaxation's warp with M steps is optimal: its objective is the dual value
+    exact_price = priced_path is not None and len(priced_path) == M + 1
 
-    def solve(blo, bhi, upper=math.inf):
-        margin = 1e-9 * (abs(upper) + abs(price) * M + 1.0)  # rounding in the bound must not cut the optimum
-        return _segment_dp(cost_into, level, rho, blo, bhi, kmin, kmax, to_go, price, upper + margin)
+    def solve_bounded(blo, bhi, known=math.inf):
+        return bounded_search(cost_into, level, rho, blo, bhi, kmin, kmax, to_go, prices, dual,
+                              DEEPEN_START * scale, exact_price, known)
 
     def around(centre, radius):
         """The band cut to ``radius`` fine points about fine positions ``centre`` (None: no warp in it)."""
@@ -609,31 +799,22 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
                               np.minimum(hi, np.ceil(centre + radius).astype(np.int64)), kmin, kmax)
         return None if np.any(blo > bhi) else (blo, bhi)
 
-    # upper bounds first: the best warps in narrow corridors, cheap to find and close to the
-    # optimum, so that the wide search drops nearly every state. The first corridors lie about the
-    # relaxation's warp (stretched to M steps; its step count can be far from M) and about the
-    # whole-frame warp; the next ones about the best warp so far, each searched with the best
-    # objective so far as its bound
-    whole_frame = (np.asarray(y, dtype=float) - a0) / h
-    q, obj = None, math.inf
-    if priced_path is not None:
-        stretched = np.interp(np.linspace(0.0, len(priced_path) - 1, M + 1), np.arange(len(priced_path)), priced_path)
-        for i, radius in enumerate(r for r in BOUND_CORRIDORS if r < corridor):
-            for centre in (stretched, whole_frame) if i == 0 else (q.astype(float),) if q is not None else ():
-                if (narrow := around(centre, radius / h)) is not None:
-                    q_try, obj_try = solve(*narrow, obj)
-                    if obj_try < obj:
-                        q, obj = q_try, obj_try
-    centre = q.astype(float) if q is not None else whole_frame
-    if int((hi - lo + 1).max()) * K * K <= FULL_BAND_STATES:
-        q, obj = solve(lo, hi, obj)
+    if not wide:
+        q, obj = solve_bounded(lo, hi)
         return (a0 + q * h, float(obj)) if np.isfinite(obj) else (None, math.inf)
+    # a band too wide to search at once: corridors, the first about the relaxation's warp (stretched
+    # to M steps: at the best price its step count is M or near it), else the whole-frame warp's
+    if priced_path is not None:
+        centre = np.interp(np.linspace(0.0, len(priced_path) - 1, M + 1), np.arange(len(priced_path)), priced_path)
+    else:
+        centre = (np.asarray(y, dtype=float) - a0) / h
+    obj = math.inf
     radius = corridor / h
     for _ in range(max_passes):
         band = around(centre, radius)
         blo, bhi = band if band is not None else (lo, hi)  # the corridor holds no warp: the whole band
         # the last warp found lies in this corridor (it is centred on it): its objective bounds this one's
-        q, obj = solve(blo, bhi, obj if band is not None else math.inf)
+        q, obj = solve_bounded(blo, bhi, obj if band is not None else math.inf)
         touches = np.any(((q == blo) & (blo > lo)) | ((q == bhi) & (bhi < hi)))
         if not touches or not np.isfinite(obj):
             break
