@@ -413,9 +413,10 @@ def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_
         # band too: those forces still fit the wider rows, and "match" then costs nothing there)
         clam = lam0.copy()
     elif lp is not None:
+        before = lp.n_solves
         lam_c = solve_center(lp, center[0], center[1], force_weights(N[:3][:, act] if n_root >= 3 else N[:, act], n_root),
                              opts.force_spread * body_weight)
-        n_lp += 1
+        n_lp += lp.n_solves - before  # HiGHS runs only if NNLS gave up
         if lam_c is None:  # the centre sits on a clipped edge within round-off: nearest vertex
             lam_c = _nearest_vertex_lam(P, L, center)[act]
         clam[act] = np.maximum(lam_c, 0.0)
