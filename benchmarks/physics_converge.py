@@ -104,6 +104,20 @@ def today(result, motion, duration):
     return evaluate(old, pr.spline, w), evaluate(old, result.spline, result.spline.w)
 
 
+def force_change(a, b):
+    """(centre, vertex) contact forces of the float32 copy's regions against the original's: the
+    largest change of one basis force, in body weights (vertices only on frames whose polygons have
+    as many vertices)."""
+    ra, rb = a.regions, b.regions
+    centre = float(np.max(np.abs(ra.center_lam - rb.center_lam), initial=0.0))
+    vertex = 0.0
+    for i in range(min(ra.n_frames, rb.n_frames)):
+        la, lb = ra.polygon_lam(i), rb.polygon_lam(i)
+        if la.shape == lb.shape and la.size:
+            vertex = max(vertex, float(np.max(np.abs(la - lb))))
+    return centre / ra.body_weight, vertex / ra.body_weight
+
+
 def run(path, scale, kw, tmp):
     src = Path(tmp) / "orig.bvh"
     save_motion(load_motion(path), src)
@@ -122,7 +136,8 @@ def run(path, scale, kw, tmp):
     same = None  # the copy's objective at the original's answer, relative to the original's there
     if b.spline.n_c == a.spline.n_c and b.spline.free == a.spline.free:
         same = b.session.problem.value(a.spline.w) / a.session.problem.value(a.spline.w) - 1.0
-    return moved, a.info, b.info, ta + tb, kinks(a.session.problem, a.spline.w), (m, a), same
+    forces = force_change(a, b) if a.regions.n_frames == b.regions.n_frames else None
+    return moved, a.info, b.info, ta + tb, kinks(a.session.problem, a.spline.w), (m, a), same, forces
 
 
 def main(argv=None):
@@ -140,14 +155,17 @@ def main(argv=None):
     for c in clips:
         with tempfile.TemporaryDirectory() as tmp:
             try:
-                moved, ia, ib, sec, nk, (m, a), same = run(c, args.scale, kw, tmp)
+                moved, ia, ib, sec, nk, (m, a), same, forces = run(c, args.scale, kw, tmp)
             except RetimeError as e:  # a clip physics refuses: say so, go on
                 print(f"{Path(c).name:14s} refused: {str(e).splitlines()[0][:80]}")
                 continue
         print(f"{Path(c).name:14s} {moved:6.3f} {ia.iterations:5d}/{ib.iterations:5d} {ia.converged:d}/{ib.converged:d} "
               f"{ia.kkt_residual:8.2g}/{ib.kkt_residual:8.2g} {nk:5d} {ia.objective:12.7g}/{ib.objective:12.7g} "
-              f"{'-' if same is None else f'{100 * same:+.3f}%':>11s}  "
+              f"{'-' if same is None else f'{100 * same:+.2g}%':>11s}  "
               f"{ia.message} | {ib.message}  ({sec:.0f} s)", flush=True)
+        if forces is not None:
+            print(f"{'':14s} contact forces of the f32 copy's regions move by up to {forces[0]:.2g} body weights "
+                  f"at the fan centres, {forces[1]:.2g} at the polygon vertices", flush=True)
         if ia.method == "newton":
             line = (f"{'':14s} objective L-BFGS -> Newton: {ia.lbfgs_objective:.9g} -> {ia.objective:.9g} "
                     f"(f32 copy {ib.lbfgs_objective:.9g} -> {ib.objective:.9g}); Newton iterations "

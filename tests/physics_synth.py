@@ -190,3 +190,26 @@ def quarter_gravity_problem():
     target = ref.b + ref.c - np.einsum("nvk,nk->nv", ref.N, rs.lam0)
     obj = O.bake(pd, rs, target, alpha=10.0, beta=0.1, penalty="l1", gamma=0.03)
     return pd, rs, obj
+
+
+def frame_lps(pd, frames, widen=0.3):
+    """Real frame LPs (the regions' own construction) of ``pd``'s contact frames among ``frames``, the
+    rows widened by ``widen`` body weights as a relaxed frame's are, so that (0, 1) is feasible:
+    [(frame, lp, least-force weights of its contact columns)]."""
+    from retime.physics.regions import RegionOptions, base_bounds
+    from retime.physics.regions.forces import force_weights
+    from retime.physics.regions.frame_region import _frame_lp, _lp_rows
+    from retime.physics.regions.highs_lp import HighsPool
+
+    opts = RegionOptions(workers=1)
+    bw = float(pd.total_mass) * G
+    lo, hi = base_bounds(pd, opts, bw, 6)
+    pool = HighsPool()
+    for i in frames:
+        a, b, c, N = (np.asarray(x[i], dtype=float) for x in (pd.a, pd.b, pd.c, pd.N))
+        act = np.flatnonzero(np.any(N != 0.0, axis=0))
+        if len(act) == 0:
+            continue
+        rows, _ = _lp_rows(N, act, len(a))
+        lp = _frame_lp(a, b, c, N, lo - widen * bw, hi + widen * bw, np.zeros(len(a)), act, rows, opts, pool)
+        yield i, lp, force_weights(N[:3][:, act], 6)

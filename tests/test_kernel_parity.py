@@ -20,10 +20,7 @@ from retime.motion import load_motion  # noqa: E402
 from retime.physics.timing import objective as O  # noqa: E402
 from retime.physics.regions import polygon as P  # noqa: E402
 from retime.physics.regions import simplex as S  # noqa: E402
-from retime.physics.regions.forces import force_weights, solve_center  # noqa: E402
-from retime.physics.regions.frame_region import _frame_lp, _lp_rows  # noqa: E402
 from retime.physics.regions.highs_lp import HighsPool  # noqa: E402
-from retime.physics.regions import RegionOptions, base_bounds  # noqa: E402
 from retime.physics.timing.spline import TimingSpline  # noqa: E402
 
 
@@ -143,20 +140,9 @@ def test_clip_twin_real(real):
 
 def _frame_lps(pd, frames):
     """Real frame LPs (the regions' own construction) with HiGHS's centre basis at (0, 1)."""
-    opts = RegionOptions(workers=1)
-    bw = float(pd.total_mass) * 9.81
-    lo, hi = base_bounds(pd, opts, bw, 6)
-    pool = HighsPool()
     out = []
-    for i in frames:
-        a, b, c, N = (np.asarray(x[i], dtype=float) for x in (pd.a, pd.b, pd.c, pd.N))
-        act = np.flatnonzero(np.any(N != 0.0, axis=0))
-        if len(act) == 0:
-            continue
-        rows, _ = _lp_rows(N, act, len(a))
-        # the rows widened as a relaxed frame's are, so that (0, 1) is feasible
-        lp = _frame_lp(a, b, c, N, lo - 0.3 * bw, hi + 0.3 * bw, np.zeros(len(a)), act, rows, opts, pool)
-        solve_center(lp, 0.0, 1.0, force_weights(N[:3][:, act], 6))
+    for _, lp, w in ps.frame_lps(pd, frames):
+        lp.solve_at(0.0, 1.0, w)  # the least-force LP: its basis starts the walk
         if lp.center_state is not None:
             out.append(lp)
     return out

@@ -66,23 +66,47 @@ def test_interpolated_lambda_is_valid_inside(jump):
             assert _feasible(pd, rs, k, i, x[0], x[1], fan.lam(x))
 
 
-def test_centre_is_the_least_total_force(jump):
-    """Independent check with scipy's linprog: min sum |f| at the original timing."""
+def _regularised_by_scipy(w, A, lo, hi, spread):
+    """min w.lam + sum (w lam)^2 / (2 spread) s.t. lo <= A lam <= hi, lam >= 0, by SciPy's SLSQP
+    from lam = 0 (in units of spread, so that its tolerances mean the same on every frame)."""
+    from scipy.optimize import minimize
+
+    s = spread
+    fin_lo, fin_hi = lo > -1e20, hi < 1e20
+    cons = [{"type": "ineq", "fun": lambda x: (A @ (s * x) - lo)[fin_lo] / s, "jac": lambda x: A[fin_lo]},
+            {"type": "ineq", "fun": lambda x: (hi - A @ (s * x))[fin_hi] / s, "jac": lambda x: -A[fin_hi]}]
+    res = minimize(lambda x: w @ x + 0.5 * np.sum((w * x) ** 2), np.zeros(len(w)), jac=lambda x: w + w ** 2 * x,
+                   bounds=[(0, None)] * len(w), constraints=cons, method="SLSQP",
+                   options={"ftol": 1e-13, "maxiter": 1000})
+    assert res.success, res.message
+    return res.x * s
+
+
+def test_centre_is_the_regularised_least_force(jump):
+    """Independent checks of the centre: SciPy's SLSQP on the same strictly convex problem
+    (min sum f + sum f^2 / (2 spread), f = w lam) finds the same forces, and their summed force exceeds
+    linprog's least summed force by no more than the quadratic term can explain."""
     pd, rs, frames = jump
+    spread = rs.options.force_spread * rs.body_weight
+    checked = 0
     for k, i in _contact_frames(pd, rs, frames)[:6]:
-        if rs.source_distance[k] > 0:
-            continue
-        u, v = rs.center[k]
+        if rs.source_distance[k] > 0 or rs.budget[k].any():
+            continue  # rows exactly as below: the centre is the original timing, the rows unwidened
         act = np.flatnonzero(np.any(pd.N[i] != 0, axis=0))
         Na = pd.N[i][:, act]
         w = np.linalg.norm(Na[:3], axis=0)
-        budget = rs.budget[k]
-        base = pd.a[i] * u + pd.b[i] * v + pd.c[i]
-        A_ub = np.vstack([-Na, Na])
-        b_ub = np.r_[rs.hi[k] + budget * v - base, -(rs.lo[k] - budget * v - base)]
-        res = linprog(w, A_ub=A_ub, b_ub=b_ub, bounds=[(0, None)] * len(act), method="highs")
+        lo, hi = R.base_bounds(pd, rs.options, rs.body_weight, 6)
+        base = pd.b[i] + pd.c[i]  # (u, v) = (0, 1)
+        lam = rs.lam0[k][act]
+        mine = _regularised_by_scipy(w, -Na, lo - base, hi - base, spread)
+        assert np.abs(mine - lam).max() <= 1e-7 * rs.body_weight
+        res = linprog(w, A_ub=np.vstack([-Na, Na]), b_ub=np.r_[hi - base, base - lo],
+                      bounds=[(0, None)] * len(act), method="highs")
         assert res.status == 0
-        assert float(w @ rs.center_lam[k][act]) == pytest.approx(res.fun, rel=1e-6, abs=1e-6)
+        quad = 0.5 * np.sum((w * res.x) ** 2) / spread
+        assert res.fun - 1e-6 <= float(w @ lam) <= res.fun + quad + 1e-6
+        checked += 1
+    assert checked >= 3
 
 
 def test_original_torques_use_the_centre_forces(jump):
@@ -110,3 +134,75 @@ def test_fan_outside_the_hull_extends_affinely():
         assert fan.wedge(p) == k
         assert np.allclose(fan.lam(p), L0 + Lu * p[0] + Lv * p[1])
     assert np.allclose(fan.lam((1.0, 1.0)), 0.5 * (L[1] + L[2]))  # edge midpoint
+
+
+def _two_identical_feet(mass=70.0):
+    """One frame's LP rows for a body standing on two feet with identical basis forces (the same
+    sole corners): every split of the load between the feet is optimal for the plain LP."""
+    from retime.physics.regions.frame_region import _frame_lp
+
+    bw = mass * ps.G
+    corners = np.array([[0.12, -1.0, 0.05], [-0.08, -1.0, 0.05], [-0.08, -1.0, -0.05], [0.12, -1.0, -0.05]])
+    foot = ps._contact_columns(corners)
+    N = np.hstack([foot, foot])  # (6, 32)
+    a, b = np.zeros(6), np.zeros(6)
+    c = np.r_[0.0, bw, 0.0, 0.0, 0.0, 0.0]  # weight, carried by the contact forces
+    band = 0.05 * bw * np.ones(6)  # the residual allowance
+    return a, b, c, N, -band, band, bw
+
+
+def _centre(a, b, c, N, lo, hi, bw, spread):
+    from retime.physics.regions.frame_region import _frame_lp
+    from retime.physics.regions.highs_lp import HighsPool
+
+    opts = R.RegionOptions()
+    act = np.arange(N.shape[1])
+    lp = _frame_lp(a, b, c, N, lo, hi, np.zeros(6), act, np.arange(6), opts, HighsPool())
+    w = F.force_weights(N[:3], 6)
+    plain = lp.solve_at(0.0, 1.0, w)
+    return plain, F.solve_center(lp, 0.0, 1.0, w, spread)
+
+
+def test_centre_forces_are_unique_on_a_degenerate_face():
+    """Two feet with identical basis forces: the plain least-force LP has a whole face of optima and
+    a 1e-7 relative perturbation of the data moves its answer by a large fraction of the body weight;
+    the regularised centre moves by O(1e-7) of it, and splits the load equally between the feet
+    (the unique minimizer of a problem symmetric in the feet is symmetric)."""
+    a, b, c, N, lo, hi, bw = _two_identical_feet()
+    spread = R.RegionOptions().force_spread * bw
+    plain0, lam0 = _centre(a, b, c, N, lo, hi, bw, spread)
+    assert np.allclose(lam0[:16], lam0[16:], atol=1e-7 * bw)
+    rng = np.random.default_rng(1)
+    plain_moves, moves = [], []
+    for _ in range(8):
+        Np = N * (1 + 1e-7 * rng.standard_normal(N.shape))
+        cp = c * (1 + 1e-7 * rng.standard_normal(6))
+        plain, lam = _centre(a, b, cp, Np, lo, hi, bw, spread)
+        plain_moves.append(np.abs(plain - plain0).max() / bw)
+        moves.append(np.abs(lam - lam0).max() / bw)
+    assert max(moves) <= 1e-5
+    assert max(plain_moves) >= 0.05  # the defect the regularisation removes (why the test exists)
+
+
+def test_centre_forces_of_a_real_frame_match_scipy(jump):
+    """Frames of the bundled standing jump (CMU 16_06): the regularised centre against SciPy's SLSQP
+    on the same rows, and the forces balance the body within the rows' bounds."""
+    from retime.data import bundled_path
+    from retime.motion import load_motion
+    from retime.physics.model.dynamics import dynamics_terms
+
+    pd = dynamics_terms(load_motion(bundled_path("16_06.amc"))).combine()
+    bw = float(pd.total_mass) * ps.G
+    spread = R.RegionOptions().force_spread * bw
+    checked = 0
+    for _, lp, w in ps.frame_lps(pd, (10, 60, 120, 150, 200, 380)):
+        lam = F.solve_center(lp, 0.0, 1.0, w, spread)
+        assert lam is not None
+        A = lp.A[:, 2:]
+        rlo, rhi = lp.row_lo - lp.A[:, 1], lp.row_hi - lp.A[:, 1]  # (u, v) = (0, 1)
+        tol = 1e-6 * bw
+        assert np.all(lam >= -tol) and np.all(A @ lam >= rlo - tol) and np.all(A @ lam <= rhi + tol)
+        ref = _regularised_by_scipy(w, A, rlo, rhi, spread)
+        assert np.abs(ref - lam).max() <= 1e-7 * bw
+        checked += 1
+    assert checked >= 4

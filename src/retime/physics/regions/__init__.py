@@ -16,8 +16,9 @@ computed per frame (:mod:`.frame_region`):
   :mod:`.highs_lp`), one ``Highs`` model per frame that keeps its basis; only the cost direction changes. Two ways of
   tracing the polygon:
 
-  - ``solver="parametric"`` (default): HiGHS solves the frame's centre LP (least contact force at the
-    original timing, sec. 3.4) -- the one HiGHS solve per frame; with its basis, a compiled phase-2
+  - ``solver="parametric"`` (default): HiGHS solves one LP per frame -- the centre LP (least contact
+    force at the original timing, sec. 3.4) when the region has the source fit's rows, else "max
+    p'^2" on the region's own rows (the noise band's); from its basis, a compiled phase-2
     primal simplex (:mod:`.simplex`) reaches the vertex of largest p'^2, and a parametric (shadow-vertex) simplex rotates
     the cost direction through 360 degrees from there, pivoting exactly at the angles where the basis
     stops being optimal. Every non-degenerate pivot lands on the next vertex of the projection, so the
@@ -98,7 +99,7 @@ class RegionSet:
     contact force coefficients ``lam`` (full width K, zero for unused columns) found at each of them.
     ``center[i]`` is the fan centre of sec. 3.4 (the original timing (0, 1) when it is feasible, else
     the nearest feasible point pulled slightly inwards) with ``center_lam[i]`` the least total contact
-    force there. ``lo``/``hi`` are the torque bounds actually used (widened on relaxed frames).
+    force there (made unique: :func:`.forces.regularised_least_force`). ``lo``/``hi`` are the torque bounds actually used (widened on relaxed frames).
     """
 
     times: np.ndarray

@@ -3,8 +3,10 @@
 Each vertex of a frame's feasible polygon comes with the contact force coefficients lambda the LP
 found there. Inside the polygon there is a family of valid lambda; the paper anchors it with one
 extra point: the **centre**, the original timing (p'', p'^2) = (0, 1) (or, when that is infeasible,
-the closest feasible point pulled 2% towards the polygon's centroid), where an LP finds the lambda of
-**least summed contact force**. The polygon is triangulated as a fan around the centre, and lambda at
+the closest feasible point pulled 2% towards the polygon's centroid), where the lambda of **least summed
+contact force** is found (made unique by a small quadratic term, :func:`regularised_least_force`: the
+plain LP's optimum is a whole face, and the vertex it returned moved with the input's float rounding,
+by up to half the body weight on CMU 13_11). The polygon is triangulated as a fan around the centre, and lambda at
 any (p'', p'^2) is interpolated barycentrically in its triangle. The constraints of Eq. 13 are
 linear, so an interpolated lambda is valid wherever the point is inside the polygon; outside it the
 same affine map of the fan wedge extends the model (the objective's feasibility term then dominates).
@@ -27,14 +29,71 @@ def force_weights(N_act, n_root):
     return np.ones(N_act.shape[1])
 
 
-def solve_center(lp, u, v, weights=None):
-    """Least summed contact force at the timing (u, v) = (p'', p'^2) on a frame's LP (sec. 3.4)."""
-    n_lam = lp.n - 2
-    if weights is None:
-        weights = getattr(lp, "force_weights", None)
-    if weights is None:
-        weights = np.ones(n_lam)
-    return lp.solve_at(float(u), float(v), np.asarray(weights, dtype=float))
+def solve_center(lp, u, v, weights, spread, walk_start=False):
+    """Contact force coefficients of least summed force at the timing (u, v) = (p'', p'^2) on a
+    frame's LP (sec. 3.4), made unique (:func:`regularised_least_force`, ``spread`` in newtons).
+    ``walk_start``: also solve the plain LP first, whose basis starts the polygon's walk
+    (``lp.center_state``). None if (u, v) is infeasible."""
+    weights = np.asarray(weights, dtype=float)
+    lam = None
+    if walk_start:
+        lam = lp.solve_at(float(u), float(v), weights)
+        if lam is None:
+            return None
+    A = lp.A[:, 2:]
+    shift = lp.A[:, 0] * float(u) + lp.A[:, 1] * float(v)
+    unique = regularised_least_force(A, lp.row_lo - shift, lp.row_hi - shift, weights, spread)
+    if unique is not None:
+        return unique
+    # infeasible, or NNLS stopped short (numerical trouble): the plain LP decides
+    return lam if walk_start else lp.solve_at(float(u), float(v), weights)
+
+
+def regularised_least_force(A, lo, hi, weights, spread):
+    """The unique lam >= 0 with lo <= A lam <= hi that minimizes, with f_k = weights_k lam_k the
+    force on basis k (newtons),
+
+        sum f_k + sum f_k^2 / (2 spread);
+
+    None if there is none. The plain least-force LP has whole faces of optima (a vertical load can
+    lean on any pair of opposite friction-cone edges, two feet can share it in any ratio), and which
+    vertex it returns jumps with the float noise of the input; the quadratic term makes the
+    minimizer unique and Lipschitz in the data (a change of the per-newton cost by e moves the
+    forces by at most ``spread`` e).
+
+    Solved as a least-distance problem (Lawson & Hanson, *Solving Least Squares Problems*, ch. 23):
+    in units of ``spread``, y = w x + 1 turns the objective into |y|^2 / 2 + const, and the LDP
+    min |y| s.t. G y >= h is the NNLS min |E z - e_last|, z >= 0, with E = [G^T; h^T]. SciPy's NNLS
+    is robust on the degenerate rows where HiGHS's active-set QP stops with a solve error."""
+    from scipy.optimize import nnls
+
+    w = np.asarray(weights, dtype=float)
+    s = float(spread)
+    A = np.asarray(A, dtype=float)
+    lo = np.asarray(lo, dtype=float)
+    hi = np.asarray(hi, dtype=float)
+    n = len(w)
+    has_lo, has_hi = lo > -1e20, hi < 1e20
+    Ar = A / w  # x = (y - 1) / w in units of spread
+    A1 = Ar.sum(axis=1)
+    G = np.vstack([np.diag(1.0 / w), Ar[has_lo], -Ar[has_hi]])
+    h = np.concatenate([1.0 / w, lo[has_lo] / s + A1[has_lo], -hi[has_hi] / s - A1[has_hi]])
+    E = np.vstack([G.T, h[None, :]])
+    target = np.zeros(n + 1)
+    target[-1] = 1.0
+    try:
+        z, _ = nnls(E, target, maxiter=50 * E.shape[1])
+    except RuntimeError:  # iteration limit
+        return None
+    r = E @ z - target
+    if abs(r[-1]) <= 1e-12:  # e_last is in the cone of E's columns: the rows are incompatible
+        return None
+    lam = s * (-r[:n] / r[-1] - 1.0) / w
+    tol = 1e-9 * s
+    Al = A @ lam
+    if np.any(lam < -tol) or np.any(Al < lo - tol) or np.any(Al > hi + tol):
+        return None
+    return lam
 
 
 class FanModel:

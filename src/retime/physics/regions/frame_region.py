@@ -41,6 +41,12 @@ class RegionOptions:
     actuated_slack_cost: float = 10.0
     body_weight: float | None = None  # newtons; default: estimated from the gravity term
     center: tuple = (0.0, 1.0)  # the timing whose contact forces anchor the force model (sec. 3.4)
+    # body weights: the least-force contact forces are made unique by a quadratic term
+    # (forces.regularised_least_force) under which a basis force of this size costs twice per newton what
+    # an unloaded one does. One body weight keeps the summed force within a few % of the least (16_16:
+    # median 1.7%, at most 2.4%) while forces move by at most this times a change of the cost per newton
+    # (float32 rounding: 1e-7 body weights, against half a body weight for the plain LP's vertex)
+    force_spread: float = 1.0
     workers: int | None = None  # processes for many frames (default: all cores, at most 2)
 
 
@@ -237,8 +243,10 @@ class SourceFit(NamedTuple):
 
 
 def source_fit(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_root: int,
-               pool: HighsPool | None = None) -> SourceFit:
-    """How far the original timing (0, 1) is from feasible at one frame (original physics)."""
+               pool: HighsPool | None = None, keep_lp: bool = False) -> SourceFit:
+    """How far the original timing (0, 1) is from feasible at one frame (original physics).
+    ``keep_lp``: the caller will trace the region on these very rows, so return the frame LP with
+    the walk's start (an extra LP solve)."""
     from .forces import force_weights, solve_center
 
     pool = pool or HighsPool()
@@ -258,16 +266,16 @@ def source_fit(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_ro
     fw = force_weights(N[:3][:, act] if n_root >= 3 else N[:, act], n_root)
     if _point_ok(a, b, c, lo, hi, other, 0.0, 1.0, tol):
         lp = _frame_lp(a, b, c, N, lo, hi, zero, act, rows, opts, pool)
-        lam = solve_center(lp, 0.0, 1.0, fw)
+        lam = solve_center(lp, 0.0, 1.0, fw, opts.force_spread * body_weight, walk_start=keep_lp)
         n_lp += lp.n_solves
         if lam is not None:
             lam0[act] = np.maximum(lam, 0.0)
-            return SourceFit(zero, 0.0, lam0, n_lp, lp)
+            return SourceFit(zero, 0.0, lam0, n_lp, lp if keep_lp else None)
     budget, res, _ = _residual_lp(a, b, c, N, lo, hi, zero, act, n_root, body_weight, opts, pool, fix=(0.0, 1.0))
     n_lp += 1
     lo1, hi1 = _widen(lo, hi, budget, opts.relax_pad * w)
     lp = _frame_lp(a, b, c, N, lo1, hi1, zero, act, rows, opts, pool)
-    lam = solve_center(lp, 0.0, 1.0, fw)
+    lam = solve_center(lp, 0.0, 1.0, fw, opts.force_spread * body_weight)
     n_lp += lp.n_solves
     if lam is not None:
         lam0[act] = np.maximum(lam, 0.0)
@@ -359,8 +367,11 @@ def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_
     eps = 1e-9 * (opts.u_max + opts.v_max)
     n_lp = 0
     lp0 = None
+    noisy = bool(opts.relax and noise is not None and opts.noise and np.any(np.asarray(noise) > 0))
     if budget is None:
-        budget, src_res, lam0, k, lp0 = source_fit(a, b, c, N, lo, hi, opts, body_weight, n_root, pool)
+        # the source fit's LP can start the walk only without the noise band (it has no budget rows)
+        budget, src_res, lam0, k, lp0 = source_fit(a, b, c, N, lo, hi, opts, body_weight, n_root, pool,
+                                                   keep_lp=not noisy)
         n_lp += k
     else:
         budget = np.asarray(budget, dtype=float)
@@ -370,10 +381,8 @@ def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_
         budget = np.zeros(nv)
     lo1 = lo - np.where(budget > 0, pad, 0.0)
     hi1 = hi + np.where(budget > 0, pad, 0.0)
-    noisy = bool(opts.relax and noise is not None and opts.noise and np.any(np.asarray(noise) > 0))
     if noisy:
         budget = budget + np.asarray(noise, dtype=float)
-        lp0 = None  # the source fit's LP has no budget rows
     P, L, lp, k, piv = _polygon(a, b, c, N, lo1, hi1, budget, act, rows, other, opts, Kall, eps, pool, lp=lp0)
     n_lp += k
     level = 0.0
@@ -404,8 +413,10 @@ def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_
         # band too: those forces still fit the wider rows, and "match" then costs nothing there)
         clam = lam0.copy()
     elif lp is not None:
-        lam_c = solve_center(lp, center[0], center[1], force_weights(N[:3][:, act] if n_root >= 3 else N[:, act], n_root))
-        n_lp += 1
+        before = lp.n_solves
+        lam_c = solve_center(lp, center[0], center[1], force_weights(N[:3][:, act] if n_root >= 3 else N[:, act], n_root),
+                             opts.force_spread * body_weight)
+        n_lp += lp.n_solves - before  # HiGHS runs only if NNLS gave up
         if lam_c is None:  # the centre sits on a clipped edge within round-off: nearest vertex
             lam_c = _nearest_vertex_lam(P, L, center)[act]
         clam[act] = np.maximum(lam_c, 0.0)

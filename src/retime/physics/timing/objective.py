@@ -759,7 +759,13 @@ def _evaluate_par(nch, c, T, breaks, Msp, ob, cache, want_grad, gc):
         for k in range(nch):
             acc += gcs[k, q]
         gc[q] = acc
-    return tot.sum(), gts.sum()
+    # summed by plain loops in chunk order: under parallel=True numba turns tot.sum() into a parallel
+    # reduction split by the thread count, whose rounding then depends on the machine
+    val, gT = 0.0, 0.0
+    for k in range(nch):
+        val += tot[k]
+        gT += gts[k]
+    return val, gT
 
 
 PARALLEL_MIN_SAMPLES = 20000  # threads pay off only for long clips; on a shared 2-core machine a busy
