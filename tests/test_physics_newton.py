@@ -82,13 +82,11 @@ def test_coordinates_map_back_to_the_same_curve(quarter_jump):
     assert pr.spline.gauge(w2)[0] == pytest.approx(0.0, abs=1e-20)  # and reads as playback speed
 
 
-# (0.9, no keytimes) converges in ~40 Newton steps with the kernels numba loads from its cache, but
-# not within 300 when they are compiled in the same process: the gradients then differ by 5e-16 and
-# Newton's damping stalls on an indefinite Hessian (issue 24's open defect). Its convergence is not
-# asserted; that the polish is never worse and near a minimum is.
-@pytest.mark.parametrize("duration,keytimes,converges", [(0.9, (), False), (None, (), True),
-                                                         (1.0, [(1.8, 1.5), (2.4, 2.6)], True)])
-def test_newton_polish_is_never_worse_and_converges(quarter_jump, duration, keytimes, converges):
+# (0.9, no keytimes) is the case whose Hessian turns indefinite on the way: with a damping of the
+# diagonal it crawled to the 300-iteration limit (or converged in ~40, depending on a 5e-16 difference
+# in the gradients between cached and freshly compiled kernels); with the eigenvalue shift it converges
+@pytest.mark.parametrize("duration,keytimes", [(0.9, ()), (None, ()), (1.0, [(1.8, 1.5), (2.4, 2.6)])])
+def test_newton_polish_is_never_worse_and_converges(quarter_jump, duration, keytimes):
     pd, rs, obj = quarter_jump
     S = pd.times[-1]
     T = None if duration is None else duration * S
@@ -98,10 +96,7 @@ def test_newton_polish_is_never_worse_and_converges(quarter_jump, duration, keyt
     w_n, info_n = solve(pr, method="newton", max_iter=3000)
     assert info_n.lbfgs_objective == pytest.approx(info_l.objective, rel=1e-12)  # the same first stage
     assert info_n.objective <= info_l.objective
-    assert info_n.newton_iterations <= 300
-    if not converges:
-        assert info_n.kkt_residual <= 10 * KKT_TOL
-        return
+    assert info_n.newton_iterations <= (100 if not keytimes else 300)  # keytimes: over the multipliers' updates
     assert info_n.converged, info_n.message
     assert info_n.kkt_residual <= KKT_TOL
     assert info_n.message.startswith("Newton step's predicted gain")

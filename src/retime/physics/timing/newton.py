@@ -10,13 +10,17 @@ optimizer's w, each c is a normalized cumulative sum of all of them, so the same
   ``k = r (mod 7)`` are stepped together (two columns of one colour are at least 7 apart, so no
   sample reads both and every gradient entry changes by one of them only), T alone; 2 x 7 (2 x 8
   with a free duration) gradients per Hessian whatever the clip's length.
-* **Step:** damped Newton (Levenberg-Marquardt: H + lambda (|diag H| + its mean), Cholesky of the
-  band by :func:`scipy.linalg.cholesky_banded`, the T column by its Schur complement), the damping
-  raised while H + lambda D is not positive definite or a step does not give a quarter of the
-  decrease its model predicts, and lowered after a step that does. The objective is stiff (the exact
-  penalty's curvature alpha / delta at a region's boundary) and not convex, so the damping does the
-  globalization; the polish starts from L-BFGS's answer, near a minimum.
-* **Stop:** converged when the (nearly undamped) step's predicted gain is below 1e-11 of the
+* **Step:** Newton with an eigenvalue shift (H + (s0 + sigma) I, s0 = max(0, -lambda_min) of the
+  band by :func:`scipy.linalg.eig_banded`, Cholesky of the band by
+  :func:`scipy.linalg.cholesky_banded`, the T column by its Schur complement), sigma a
+  Levenberg-Marquardt parameter raised while a step does not give a quarter of the decrease its
+  model predicts and lowered after a step that does. The objective is stiff (the exact penalty's
+  curvature alpha / delta at a region's boundary; the Hessian's eigenvalues run from 1 to 1e8) and not
+  convex, so the shift and sigma do the globalization; the polish starts from L-BFGS's answer.
+  (Before: a damping of the diagonal plus its mean, H + lambda (|diag H| + mean), which on an
+  indefinite Hessian stuck at lambda ~ 1e-2, a shift of 1e-2 of the stiffest curvature on the flat
+  directions, and crawled to the 300-iteration limit.)
+* **Stop:** converged when the (nearly unshifted) step's predicted gain is below 1e-11 of the
   objective, or ten steps together gained less than 1e-10 of it (creeping along a direction of
   almost no curvature); :func:`retime.physics.timing.optimize.solve` also asks the KKT residual.
 * **Bounds** (``w_min <= w <= w_max``: each increment c_{k+1} - c_k within w d_k T) by step
@@ -40,7 +44,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from scipy.linalg import cho_solve_banded, cholesky_banded, LinAlgError
+from scipy.linalg import cho_solve_banded, cholesky_banded, eig_banded, LinAlgError
 
 from .objective import evaluate_c
 
@@ -162,15 +166,11 @@ def banded_hessian(fun, z, steps):
     return ab, col, corner
 
 
-def solve_arrowhead(ab, col, corner, g, damping):
-    """Solve (H + damping D) x = -g for the banded + T-arrow H, D = |diag H| + its mean (the mean
-    keeps a coordinate of small or negative curvature from needing an enormous damping); None if
-    that is not positive definite."""
+def solve_arrowhead(ab, col, corner, g, shift):
+    """Solve (H + shift I) x = -g for the banded + T-arrow H; None if that is not positive definite."""
     n_c = ab.shape[1]
     A = ab.copy()
-    diag = np.abs(A[BAND])
-    floor = float(np.mean(diag)) if n_c else 0.0
-    A[BAND] = A[BAND] + damping * (diag + floor)
+    A[BAND] = A[BAND] + shift
     try:
         cb = cholesky_banded(A, lower=False)
     except LinAlgError:
@@ -180,13 +180,21 @@ def solve_arrowhead(ab, col, corner, g, damping):
     gc, gT = g[:n_c], g[n_c]
     Ainv_g = cho_solve_banded((cb, False), gc)
     Ainv_b = cho_solve_banded((cb, False), col)
-    a = corner + damping * (abs(corner) + floor)
-    schur = a - float(col @ Ainv_b)
+    schur = corner + shift - float(col @ Ainv_b)
     if not schur > 0:
         return None
     y = -(gT - float(col @ Ainv_g)) / schur
     x = -Ainv_g - Ainv_b * y
     return np.r_[x, y]
+
+
+def extreme_eigenvalues(ab):
+    """(smallest, largest) eigenvalue of the band (the c-part of the Hessian), by
+    :func:`scipy.linalg.eig_banded` (a banded tridiagonalization and bisection: O(n) for the band)."""
+    n = ab.shape[1]
+    lo = eig_banded(ab, lower=False, eigvals_only=True, select="i", select_range=(0, 0))[0]
+    hi = eig_banded(ab, lower=False, eigvals_only=True, select="i", select_range=(n - 1, n - 1))[0]
+    return float(lo), float(hi)
 
 
 def _feasible_fraction(coords, z, dz, c0, w_min, w_max):
@@ -211,31 +219,42 @@ def difference_steps(coords, z):
 
 
 def newton_inner(fun, z, w_bounds, max_iter=100, gain_tol=1e-11, deadline=None, log=None):
-    """Damped Newton on ``fun`` (a :class:`BandedObjective`) from z: (z, F, iterations, converged,
-    message). Converged: the (nearly undamped) Newton step's predicted gain is below ``gain_tol``
-    (relative) at a positive definite Hessian: no second-order model sees a decrease worth having
-    (what remains creeps along directions of curvature 1e-8 of the largest, by 1e-12 a step)."""
+    """Newton on ``fun`` (a :class:`BandedObjective`) from z, with an eigenvalue shift and a
+    Levenberg-Marquardt parameter on top: the step solves (H + (s0 + sigma) I) dz = -g, where
+    s0 = max(0, -lambda_min(H)) makes the shifted Hessian positive semidefinite (the smallest eigenvalue
+    of the band by :func:`extreme_eigenvalues`) and sigma, relative to lambda_max(H), grows tenfold
+    while a step fails (not positive definite with the T arrow, or less than a quarter of the model's
+    decrease) and shrinks tenfold after one that works, a trust region in all but name. A shift of the
+    identity, not of the diagonal: the curvatures run from 1 to 1e8, and a damping that scales with
+    the diagonal (plus its mean, as before) held the flat directions still and crawled for hundreds of
+    iterations on an indefinite Hessian. (z, F, iterations, converged, message). Converged: at a
+    positive definite Hessian (s0 = 0 up to the difference noise, 1e-9 of lambda_max), the Newton
+    step's predicted gain is below ``gain_tol`` (relative)."""
     coords, c0 = fun.coords, fun.c0
     w_min, w_max = w_bounds
     f, g = fun(z)
-    damping = 1e-6
+    sigma = 1e-12  # relative to lambda_max
     it = 0
     history = [f]
     for it in range(1, max_iter + 1):
         if deadline is not None and time.perf_counter() > deadline:
             return z, f, it - 1, False, "time limit"
         ab, col, corner = banded_hessian(fun, z, difference_steps(coords, z))
+        lo, hi = extreme_eigenvalues(ab)
+        scale = max(abs(hi), abs(lo), 1e-300)
+        definite = lo > -1e-9 * scale
+        floor = max(0.0, -lo)
         first = True
         while True:
-            dz = solve_arrowhead(ab, col, corner, g, damping)
-            if dz is None:  # not positive definite at this damping
-                damping = max(10.0 * damping, 1e-8)
+            dz = solve_arrowhead(ab, col, corner, g, floor + sigma * scale)
+            if dz is None:  # not positive definite with the T arrow at this shift
+                sigma = max(10.0 * sigma, 1e-12)
                 first = False
-                if damping > 1e12:
+                if sigma > 1e6:
                     return z, f, it, False, "the Hessian stays indefinite"
                 continue
             predicted = -(g @ dz) - 0.5 * _quad(ab, col, corner, dz)  # the model's decrease
-            if first and damping <= 1.0 and predicted <= gain_tol * max(abs(f), OBJECTIVE_FLOOR):
+            if first and definite and sigma <= 1e-6 and predicted <= gain_tol * max(abs(f), OBJECTIVE_FLOOR):
                 return z, f, it, True, f"Newton step's predicted gain below {gain_tol:g} (relative)"
             t = _feasible_fraction(coords, z, dz, c0, w_min, w_max)
             if t == 0.0:
@@ -244,14 +263,14 @@ def newton_inner(fun, z, w_bounds, max_iter=100, gain_tol=1e-11, deadline=None, 
             fn, gn = fun(z + dz)
             if fn < f and (f - fn) >= 0.25 * t * predicted:
                 break
-            damping = max(10.0 * damping, 1e-8)
+            sigma = max(10.0 * sigma, 1e-12)
             first = False
-            if damping > 1e12:
+            if sigma > 1e6:
                 return z, f, it, False, "no step decreases the objective"
         if log is not None:
-            log(it, fn, predicted, f - fn, damping, t)
+            log(it, fn, predicted, f - fn, sigma, t)
         z, f, g = z + dz, fn, gn
-        damping = max(damping / 10.0, 1e-12)
+        sigma = max(sigma / 10.0, 1e-12)
         history.append(f)
         if len(history) > STALL_ITERATIONS and history[-STALL_ITERATIONS - 1] - f <= STALL_GAIN * max(abs(f), OBJECTIVE_FLOOR):
             # creeping along a direction of almost no curvature: what is left is below any tolerance
