@@ -118,3 +118,27 @@ def test_the_report_block_gives_both_objectives(quarter_jump):
     assert block["objective"] <= block["lbfgs_objective"]
     assert block["newton_iterations"] == info.newton_iterations > 0
     assert block["kkt_residual"] <= KKT_TOL
+
+
+def test_a_float32_copy_retimes_within_a_tenth_of_a_frame(tmp_path):
+    """Issue 24's target on a bundled jump: the clip and its float32 copy (every channel rounded,
+    written, read back) give timings within 0.1 source frame, both converged (Newton's test and the
+    KKT residual) within 100 Newton iterations. (On 16_15 and 131_01 they still do not: nearby
+    minima that rounding picks between, benchmarks/physics_converge.py.)"""
+    sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "benchmarks"))
+    from physics_converge import float32_copy
+
+    from retime.motion import load_motion
+    from retime.motion.files import save_motion
+    from retime.physics.api import physics_warp
+
+    clip = os.path.join(os.path.dirname(__file__), "..", "src", "retime", "data", "cmu", "16_33.amc")
+    save_motion(load_motion(clip), tmp_path / "orig.bvh")
+    float32_copy(tmp_path / "orig.bvh", tmp_path / "f32.bvh")
+    runs = [physics_warp(load_motion(tmp_path / name), scale=0.5) for name in ("orig.bvh", "f32.bvh")]
+    fps = load_motion(tmp_path / "orig.bvh").fps
+    t = np.arange(0.0, runs[0].spline.duration, 1.0 / fps)
+    assert np.max(np.abs(runs[0].curve(t) - runs[1].curve(t))) * fps <= 0.1
+    for r in runs:
+        assert r.info.converged, r.info.message
+        assert r.info.newton_iterations <= 100 and r.info.kkt_residual <= KKT_TOL
