@@ -52,6 +52,7 @@ BAND = 3  # a sample reads c_m .. c_{m+3}
 COLOURS = 2 * BAND + 1
 STALL_ITERATIONS = 10
 STALL_GAIN = 1e-10
+ROUNDING = 1e-14  # a relative change of the objective below this is its summation's rounding, not a gain
 OBJECTIVE_FLOOR = 1e-6  # relative tests are relative to at least this: an objective of 1e-18 (the original
 # timing, which costs nothing) has no relative digits left to gain
 
@@ -263,6 +264,11 @@ def newton_inner(fun, z, w_bounds, max_iter=100, gain_tol=1e-11, deadline=None, 
             fn, gn = fun(z + dz)
             if fn < f and (f - fn) >= 0.25 * t * predicted:
                 break
+            if predicted <= ROUNDING * max(abs(f), OBJECTIVE_FLOOR):
+                # the steps short enough for the model to hold promise less than evaluating f can
+                # resolve: nothing left to gain that could be measured (optimize.solve still asks the
+                # KKT residual before it says converged)
+                return z, f, it, True, "no step gains more than the objective's rounding"
             sigma = max(10.0 * sigma, 1e-12)
             first = False
             if sigma > 1e6:
