@@ -14,7 +14,10 @@ optimizer's w, each c is a normalized cumulative sum of all of them, so the same
   band by :func:`scipy.linalg.eig_banded`, Cholesky of the band by
   :func:`scipy.linalg.cholesky_banded`, the T column by its Schur complement), sigma a
   Levenberg-Marquardt parameter raised while a step does not give a quarter of the decrease its
-  model predicts and lowered after a step that does. The objective is stiff (the exact penalty's
+  model predicts (after up to four halvings along the same direction have not given an Armijo
+  decrease either: the penalty is C1, its curvature jumps where a sample crosses a region's
+  boundary, and the full step overshoots such a jump more often than its direction is wrong) and
+  lowered after a step that does. The objective is stiff (the exact penalty's
   curvature alpha / delta at a region's boundary; the Hessian's eigenvalues run from 1 to 1e8) and not
   convex, so the shift and sigma do the globalization; the polish starts from L-BFGS's answer.
   (Before: a damping of the diagonal plus its mean, H + lambda (|diag H| + mean), which on an
@@ -51,6 +54,7 @@ from .objective import evaluate_c
 BAND = 3  # a sample reads c_m .. c_{m+3}
 COLOURS = 2 * BAND + 1
 STALL_ITERATIONS = 10
+BACKTRACKS = 4
 STALL_GAIN = 1e-10
 ROUNDING = 1e-14  # a relative change of the objective below this is its summation's rounding, not a gain
 OBJECTIVE_FLOOR = 1e-6  # relative tests are relative to at least this: an objective of 1e-18 (the original
@@ -263,6 +267,19 @@ def newton_inner(fun, z, w_bounds, max_iter=100, gain_tol=1e-11, deadline=None, 
             dz = t * dz
             fn, gn = fun(z + dz)
             if fn < f and (f - fn) >= 0.25 * t * predicted:
+                break
+            # the model overshoots where the curvature jumps (a sample crossing a region's boundary):
+            # backtrack along the Newton direction (Armijo) before turning it towards the gradient
+            slope = -float(g @ dz)
+            for _ in range(BACKTRACKS):
+                dz = 0.5 * dz
+                slope *= 0.5
+                fn, gn = fun(z + dz)
+                if fn <= f - 1e-4 * slope:
+                    break
+            else:
+                fn = np.inf
+            if fn < f:
                 break
             if predicted <= ROUNDING * max(abs(f), OBJECTIVE_FLOOR):
                 # the steps short enough for the model to hold promise less than evaluating f can
