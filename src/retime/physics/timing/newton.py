@@ -10,8 +10,8 @@ optimizer's w, each c is a normalized cumulative sum of all of them, so the same
   ``k = r (mod 7)`` are stepped together (two columns of one colour are at least 7 apart, so no
   sample reads both and every gradient entry changes by one of them only), T alone; 2 x 7 (2 x 8
   with a free duration) gradients per Hessian whatever the clip's length.
-* **Step:** Newton with an eigenvalue shift (H + (s0 + sigma) I, s0 = max(0, -lambda_min) of the
-  band by :func:`scipy.linalg.eig_banded`, Cholesky of the band by
+* **Step:** Newton with a shift (H + (s0 + sigma) I, s0 the least of 0, 1e-12 x 4^k of the largest
+  curvature that makes the Cholesky succeed, :func:`definite_shift`; Cholesky of the band by
   :func:`scipy.linalg.cholesky_banded`, the T column by its Schur complement), sigma a
   Levenberg-Marquardt parameter raised while a step does not give a quarter of the decrease its
   model predicts (after up to four halvings along the same direction have not given an Armijo
@@ -44,10 +44,11 @@ answer as L-BFGS.
 """
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
-from scipy.linalg import cho_solve_banded, cholesky_banded, eig_banded, LinAlgError
+from scipy.linalg import cho_solve_banded, cholesky_banded, LinAlgError
 
 from .objective import evaluate_c
 
@@ -55,6 +56,7 @@ BAND = 3  # a sample reads c_m .. c_{m+3}
 COLOURS = 2 * BAND + 1
 STALL_ITERATIONS = 10
 BACKTRACKS = 4
+BISECTIONS = 6
 STALL_GAIN = 1e-10
 ROUNDING = 1e-14  # a relative change of the objective below this is its summation's rounding, not a gain
 OBJECTIVE_FLOOR = 1e-6  # relative tests are relative to at least this: an objective of 1e-18 (the original
@@ -193,13 +195,34 @@ def solve_arrowhead(ab, col, corner, g, shift):
     return np.r_[x, y]
 
 
-def extreme_eigenvalues(ab):
-    """(smallest, largest) eigenvalue of the band (the c-part of the Hessian), by
-    :func:`scipy.linalg.eig_banded` (a banded tridiagonalization and bisection: O(n) for the band)."""
-    n = ab.shape[1]
-    lo = eig_banded(ab, lower=False, eigvals_only=True, select="i", select_range=(0, 0))[0]
-    hi = eig_banded(ab, lower=False, eigvals_only=True, select="i", select_range=(n - 1, n - 1))[0]
-    return float(lo), float(hi)
+def definite_shift(ab, col, corner, tiny=1e-12):
+    """(s0, scale): nearly the least shift s0 that makes H + s0 I positive definite (0, or tiny scale 4^k
+    refined by bisection; its Cholesky, with the T arrow's Schur complement, succeeds: Nocedal & Wright's
+    "Cholesky with added multiple of the identity", O(n) a try where an eigenvalue of the band costs
+    O(n^2)), and scale, a bound on H's largest eigenvalue (the largest absolute row sum, Gershgorin)."""
+    n_c = ab.shape[1]
+    rows = np.abs(ab[BAND]).copy()
+    for off in range(1, BAND + 1):
+        rows[off:] += np.abs(ab[BAND - off, off:])
+        rows[:-off] += np.abs(ab[BAND - off, off:])
+    last = 0.0  # the T row's sum
+    if col is not None:
+        rows += np.abs(col)
+        last = abs(corner) + float(np.sum(np.abs(col)))
+    scale = max(float(np.max(rows, initial=0.0)), last, 1e-300)
+    probe = np.zeros(n_c + (col is not None))
+    if solve_arrowhead(ab, col, corner, probe, 0.0) is not None:
+        return 0.0, scale
+    lo, hi = 0.0, tiny * scale
+    while solve_arrowhead(ab, col, corner, probe, hi) is None and hi <= scale:
+        lo, hi = hi, 4.0 * hi
+    for _ in range(BISECTIONS if lo > 0.0 else 0):  # to within a factor 4^(1/2^BISECTIONS) of the least
+        mid = math.sqrt(lo * hi)
+        if solve_arrowhead(ab, col, corner, probe, mid) is None:
+            lo = mid
+        else:
+            hi = mid
+    return hi, scale
 
 
 def _feasible_fraction(coords, z, dz, c0, w_min, w_max):
@@ -224,16 +247,16 @@ def difference_steps(coords, z):
 
 
 def newton_inner(fun, z, w_bounds, max_iter=100, gain_tol=1e-11, deadline=None, log=None):
-    """Newton on ``fun`` (a :class:`BandedObjective`) from z, with an eigenvalue shift and a
-    Levenberg-Marquardt parameter on top: the step solves (H + (s0 + sigma) I) dz = -g, where
-    s0 = max(0, -lambda_min(H)) makes the shifted Hessian positive semidefinite (the smallest eigenvalue
-    of the band by :func:`extreme_eigenvalues`) and sigma, relative to lambda_max(H), grows tenfold
-    while a step fails (not positive definite with the T arrow, or less than a quarter of the model's
-    decrease) and shrinks tenfold after one that works, a trust region in all but name. A shift of the
-    identity, not of the diagonal: the curvatures run from 1 to 1e8, and a damping that scales with
-    the diagonal (plus its mean, as before) held the flat directions still and crawled for hundreds of
-    iterations on an indefinite Hessian. (z, F, iterations, converged, message). Converged: at a
-    positive definite Hessian (s0 = 0 up to the difference noise, 1e-9 of lambda_max), the Newton
+    """Newton on ``fun`` (a :class:`BandedObjective`) from z, with a shift of the identity and a
+    Levenberg-Marquardt parameter on top: the step solves (H + (s0 + sigma scale) I) dz = -g, where s0
+    makes the shifted Hessian positive definite (:func:`definite_shift`, within a factor 4 of the
+    least such shift, -lambda_min) and sigma grows tenfold while a step fails (not positive definite
+    with the T arrow, or less than a quarter of the model's decrease, and four halvings along it no
+    Armijo decrease) and shrinks tenfold after one that works, a trust region in all but name. A
+    shift of the identity, not of the diagonal: the curvatures run from 1 to 1e8, and a damping that
+    scales with the diagonal (plus its mean, as before) held the flat directions still and crawled
+    for hundreds of iterations on an indefinite Hessian. (z, F, iterations, converged, message).
+    Converged: at a positive definite Hessian (s0 at most 1e-9 of the largest curvature), the Newton
     step's predicted gain is below ``gain_tol`` (relative)."""
     coords, c0 = fun.coords, fun.c0
     w_min, w_max = w_bounds
@@ -245,10 +268,8 @@ def newton_inner(fun, z, w_bounds, max_iter=100, gain_tol=1e-11, deadline=None, 
         if deadline is not None and time.perf_counter() > deadline:
             return z, f, it - 1, False, "time limit"
         ab, col, corner = banded_hessian(fun, z, difference_steps(coords, z))
-        lo, hi = extreme_eigenvalues(ab)
-        scale = max(abs(hi), abs(lo), 1e-300)
-        definite = lo > -1e-9 * scale
-        floor = max(0.0, -lo)
+        floor, scale = definite_shift(ab, col, corner)
+        definite = floor <= 1e-9 * scale
         first = True
         while True:
             dz = solve_arrowhead(ab, col, corner, g, floor + sigma * scale)
