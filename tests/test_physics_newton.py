@@ -82,13 +82,11 @@ def test_coordinates_map_back_to_the_same_curve(quarter_jump):
     assert pr.spline.gauge(w2)[0] == pytest.approx(0.0, abs=1e-20)  # and reads as playback speed
 
 
-# (0.9, no keytimes) converges in ~40 Newton steps with the kernels numba loads from its cache, but
-# not within 300 when they are compiled in the same process: the gradients then differ by 5e-16 and
-# Newton's damping stalls on an indefinite Hessian (issue 24's open defect). Its convergence is not
-# asserted; that the polish is never worse and near a minimum is.
-@pytest.mark.parametrize("duration,keytimes,converges", [(0.9, (), False), (None, (), True),
-                                                         (1.0, [(1.8, 1.5), (2.4, 2.6)], True)])
-def test_newton_polish_is_never_worse_and_converges(quarter_jump, duration, keytimes, converges):
+# (0.9, no keytimes) is the case whose Hessian turns indefinite on the way: with a damping of the
+# diagonal it crawled to the 300-iteration limit (or converged in ~40, depending on a 5e-16 difference
+# in the gradients between cached and freshly compiled kernels); with the eigenvalue shift it converges
+@pytest.mark.parametrize("duration,keytimes", [(0.9, ()), (None, ()), (1.0, [(1.8, 1.5), (2.4, 2.6)])])
+def test_newton_polish_is_never_worse_and_converges(quarter_jump, duration, keytimes):
     pd, rs, obj = quarter_jump
     S = pd.times[-1]
     T = None if duration is None else duration * S
@@ -98,10 +96,7 @@ def test_newton_polish_is_never_worse_and_converges(quarter_jump, duration, keyt
     w_n, info_n = solve(pr, method="newton", max_iter=3000)
     assert info_n.lbfgs_objective == pytest.approx(info_l.objective, rel=1e-12)  # the same first stage
     assert info_n.objective <= info_l.objective
-    assert info_n.newton_iterations <= 300
-    if not converges:
-        assert info_n.kkt_residual <= 10 * KKT_TOL
-        return
+    assert info_n.newton_iterations <= (100 if not keytimes else 300)  # keytimes: over the multipliers' updates
     assert info_n.converged, info_n.message
     assert info_n.kkt_residual <= KKT_TOL
     assert info_n.message.startswith("Newton step's predicted gain")
@@ -123,3 +118,27 @@ def test_the_report_block_gives_both_objectives(quarter_jump):
     assert block["objective"] <= block["lbfgs_objective"]
     assert block["newton_iterations"] == info.newton_iterations > 0
     assert block["kkt_residual"] <= KKT_TOL
+
+
+def test_a_float32_copy_retimes_within_a_tenth_of_a_frame(tmp_path):
+    """Issue 24's target on a bundled jump: the clip and its float32 copy (every channel rounded,
+    written, read back) give timings within 0.1 source frame, both converged (Newton's test and the
+    KKT residual) within 100 Newton iterations. (On 16_15 and 131_01 they still do not: nearby
+    minima that rounding picks between, benchmarks/physics_converge.py.)"""
+    sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "benchmarks"))
+    from physics_converge import float32_copy
+
+    from retime.motion import load_motion
+    from retime.motion.files import save_motion
+    from retime.physics.api import physics_warp
+
+    clip = os.path.join(os.path.dirname(__file__), "..", "src", "retime", "data", "cmu", "16_33.amc")
+    save_motion(load_motion(clip), tmp_path / "orig.bvh")
+    float32_copy(tmp_path / "orig.bvh", tmp_path / "f32.bvh")
+    runs = [physics_warp(load_motion(tmp_path / name), scale=0.5) for name in ("orig.bvh", "f32.bvh")]
+    fps = load_motion(tmp_path / "orig.bvh").fps
+    t = np.arange(0.0, runs[0].spline.duration, 1.0 / fps)
+    assert np.max(np.abs(runs[0].curve(t) - runs[1].curve(t))) * fps <= 0.1
+    for r in runs:
+        assert r.info.converged, r.info.message
+        assert r.info.newton_iterations <= 100 and r.info.kkt_residual <= KKT_TOL

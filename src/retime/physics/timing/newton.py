@@ -10,13 +10,20 @@ optimizer's w, each c is a normalized cumulative sum of all of them, so the same
   ``k = r (mod 7)`` are stepped together (two columns of one colour are at least 7 apart, so no
   sample reads both and every gradient entry changes by one of them only), T alone; 2 x 7 (2 x 8
   with a free duration) gradients per Hessian whatever the clip's length.
-* **Step:** damped Newton (Levenberg-Marquardt: H + lambda (|diag H| + its mean), Cholesky of the
-  band by :func:`scipy.linalg.cholesky_banded`, the T column by its Schur complement), the damping
-  raised while H + lambda D is not positive definite or a step does not give a quarter of the
-  decrease its model predicts, and lowered after a step that does. The objective is stiff (the exact
-  penalty's curvature alpha / delta at a region's boundary) and not convex, so the damping does the
-  globalization; the polish starts from L-BFGS's answer, near a minimum.
-* **Stop:** converged when the (nearly undamped) step's predicted gain is below 1e-11 of the
+* **Step:** Newton with a shift (H + (s0 + sigma) I, s0 the least of 0, 1e-12 x 4^k of the largest
+  curvature that makes the Cholesky succeed, :func:`definite_shift`; Cholesky of the band by
+  :func:`scipy.linalg.cholesky_banded`, the T column by its Schur complement), sigma a
+  Levenberg-Marquardt parameter raised while a step does not give a quarter of the decrease its
+  model predicts (after up to four halvings along the same direction have not given an Armijo
+  decrease either: the penalty is C1, its curvature jumps where a sample crosses a region's
+  boundary, and the full step overshoots such a jump more often than its direction is wrong) and
+  lowered after a step that does. The objective is stiff (the exact penalty's
+  curvature alpha / delta at a region's boundary; the Hessian's eigenvalues run from 1 to 1e8) and not
+  convex, so the shift and sigma do the globalization; the polish starts from L-BFGS's answer.
+  (Before: a damping of the diagonal plus its mean, H + lambda (|diag H| + mean), which on an
+  indefinite Hessian stuck at lambda ~ 1e-2, a shift of 1e-2 of the stiffest curvature on the flat
+  directions, and crawled to the 300-iteration limit.)
+* **Stop:** converged when the (nearly unshifted) step's predicted gain is below 1e-11 of the
   objective, or ten steps together gained less than 1e-10 of it (creeping along a direction of
   almost no curvature); :func:`retime.physics.timing.optimize.solve` also asks the KKT residual.
 * **Bounds** (``w_min <= w <= w_max``: each increment c_{k+1} - c_k within w d_k T) by step
@@ -37,6 +44,7 @@ answer as L-BFGS.
 """
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -47,7 +55,10 @@ from .objective import evaluate_c
 BAND = 3  # a sample reads c_m .. c_{m+3}
 COLOURS = 2 * BAND + 1
 STALL_ITERATIONS = 10
+BACKTRACKS = 4
+BISECTIONS = 6
 STALL_GAIN = 1e-10
+ROUNDING = 1e-14  # a relative change of the objective below this is its summation's rounding, not a gain
 OBJECTIVE_FLOOR = 1e-6  # relative tests are relative to at least this: an objective of 1e-18 (the original
 # timing, which costs nothing) has no relative digits left to gain
 
@@ -162,15 +173,11 @@ def banded_hessian(fun, z, steps):
     return ab, col, corner
 
 
-def solve_arrowhead(ab, col, corner, g, damping):
-    """Solve (H + damping D) x = -g for the banded + T-arrow H, D = |diag H| + its mean (the mean
-    keeps a coordinate of small or negative curvature from needing an enormous damping); None if
-    that is not positive definite."""
+def solve_arrowhead(ab, col, corner, g, shift):
+    """Solve (H + shift I) x = -g for the banded + T-arrow H; None if that is not positive definite."""
     n_c = ab.shape[1]
     A = ab.copy()
-    diag = np.abs(A[BAND])
-    floor = float(np.mean(diag)) if n_c else 0.0
-    A[BAND] = A[BAND] + damping * (diag + floor)
+    A[BAND] = A[BAND] + shift
     try:
         cb = cholesky_banded(A, lower=False)
     except LinAlgError:
@@ -180,13 +187,42 @@ def solve_arrowhead(ab, col, corner, g, damping):
     gc, gT = g[:n_c], g[n_c]
     Ainv_g = cho_solve_banded((cb, False), gc)
     Ainv_b = cho_solve_banded((cb, False), col)
-    a = corner + damping * (abs(corner) + floor)
-    schur = a - float(col @ Ainv_b)
+    schur = corner + shift - float(col @ Ainv_b)
     if not schur > 0:
         return None
     y = -(gT - float(col @ Ainv_g)) / schur
     x = -Ainv_g - Ainv_b * y
     return np.r_[x, y]
+
+
+def definite_shift(ab, col, corner, tiny=1e-12):
+    """(s0, scale): nearly the least shift s0 that makes H + s0 I positive definite (0, or tiny scale 4^k
+    refined by bisection; its Cholesky, with the T arrow's Schur complement, succeeds: Nocedal & Wright's
+    "Cholesky with added multiple of the identity", O(n) a try where an eigenvalue of the band costs
+    O(n^2)), and scale, a bound on H's largest eigenvalue (the largest absolute row sum, Gershgorin)."""
+    n_c = ab.shape[1]
+    rows = np.abs(ab[BAND]).copy()
+    for off in range(1, BAND + 1):
+        rows[off:] += np.abs(ab[BAND - off, off:])
+        rows[:-off] += np.abs(ab[BAND - off, off:])
+    last = 0.0  # the T row's sum
+    if col is not None:
+        rows += np.abs(col)
+        last = abs(corner) + float(np.sum(np.abs(col)))
+    scale = max(float(np.max(rows, initial=0.0)), last, 1e-300)
+    probe = np.zeros(n_c + (col is not None))
+    if solve_arrowhead(ab, col, corner, probe, 0.0) is not None:
+        return 0.0, scale
+    lo, hi = 0.0, tiny * scale
+    while solve_arrowhead(ab, col, corner, probe, hi) is None and hi <= scale:
+        lo, hi = hi, 4.0 * hi
+    for _ in range(BISECTIONS if lo > 0.0 else 0):  # to within a factor 4^(1/2^BISECTIONS) of the least
+        mid = math.sqrt(lo * hi)
+        if solve_arrowhead(ab, col, corner, probe, mid) is None:
+            lo = mid
+        else:
+            hi = mid
+    return hi, scale
 
 
 def _feasible_fraction(coords, z, dz, c0, w_min, w_max):
@@ -211,31 +247,40 @@ def difference_steps(coords, z):
 
 
 def newton_inner(fun, z, w_bounds, max_iter=100, gain_tol=1e-11, deadline=None, log=None):
-    """Damped Newton on ``fun`` (a :class:`BandedObjective`) from z: (z, F, iterations, converged,
-    message). Converged: the (nearly undamped) Newton step's predicted gain is below ``gain_tol``
-    (relative) at a positive definite Hessian: no second-order model sees a decrease worth having
-    (what remains creeps along directions of curvature 1e-8 of the largest, by 1e-12 a step)."""
+    """Newton on ``fun`` (a :class:`BandedObjective`) from z, with a shift of the identity and a
+    Levenberg-Marquardt parameter on top: the step solves (H + (s0 + sigma scale) I) dz = -g, where s0
+    makes the shifted Hessian positive definite (:func:`definite_shift`, within a factor 4 of the
+    least such shift, -lambda_min) and sigma grows tenfold while a step fails (not positive definite
+    with the T arrow, or less than a quarter of the model's decrease, and four halvings along it no
+    Armijo decrease) and shrinks tenfold after one that works, a trust region in all but name. A
+    shift of the identity, not of the diagonal: the curvatures run from 1 to 1e8, and a damping that
+    scales with the diagonal (plus its mean, as before) held the flat directions still and crawled
+    for hundreds of iterations on an indefinite Hessian. (z, F, iterations, converged, message).
+    Converged: at a positive definite Hessian (s0 at most 1e-9 of the largest curvature), the Newton
+    step's predicted gain is below ``gain_tol`` (relative)."""
     coords, c0 = fun.coords, fun.c0
     w_min, w_max = w_bounds
     f, g = fun(z)
-    damping = 1e-6
+    sigma = 1e-12  # relative to lambda_max
     it = 0
     history = [f]
     for it in range(1, max_iter + 1):
         if deadline is not None and time.perf_counter() > deadline:
             return z, f, it - 1, False, "time limit"
         ab, col, corner = banded_hessian(fun, z, difference_steps(coords, z))
+        floor, scale = definite_shift(ab, col, corner)
+        definite = floor <= 1e-9 * scale
         first = True
         while True:
-            dz = solve_arrowhead(ab, col, corner, g, damping)
-            if dz is None:  # not positive definite at this damping
-                damping = max(10.0 * damping, 1e-8)
+            dz = solve_arrowhead(ab, col, corner, g, floor + sigma * scale)
+            if dz is None:  # not positive definite with the T arrow at this shift
+                sigma = max(10.0 * sigma, 1e-12)
                 first = False
-                if damping > 1e12:
+                if sigma > 1e6:
                     return z, f, it, False, "the Hessian stays indefinite"
                 continue
             predicted = -(g @ dz) - 0.5 * _quad(ab, col, corner, dz)  # the model's decrease
-            if first and damping <= 1.0 and predicted <= gain_tol * max(abs(f), OBJECTIVE_FLOOR):
+            if first and definite and sigma <= 1e-6 and predicted <= gain_tol * max(abs(f), OBJECTIVE_FLOOR):
                 return z, f, it, True, f"Newton step's predicted gain below {gain_tol:g} (relative)"
             t = _feasible_fraction(coords, z, dz, c0, w_min, w_max)
             if t == 0.0:
@@ -244,14 +289,32 @@ def newton_inner(fun, z, w_bounds, max_iter=100, gain_tol=1e-11, deadline=None, 
             fn, gn = fun(z + dz)
             if fn < f and (f - fn) >= 0.25 * t * predicted:
                 break
-            damping = max(10.0 * damping, 1e-8)
+            # the model overshoots where the curvature jumps (a sample crossing a region's boundary):
+            # backtrack along the Newton direction (Armijo) before turning it towards the gradient
+            slope = -float(g @ dz)
+            for _ in range(BACKTRACKS):
+                dz = 0.5 * dz
+                slope *= 0.5
+                fn, gn = fun(z + dz)
+                if fn <= f - 1e-4 * slope:
+                    break
+            else:
+                fn = np.inf
+            if fn < f:
+                break
+            if predicted <= ROUNDING * max(abs(f), OBJECTIVE_FLOOR):
+                # the steps short enough for the model to hold promise less than evaluating f can
+                # resolve: nothing left to gain that could be measured (optimize.solve still asks the
+                # KKT residual before it says converged)
+                return z, f, it, True, "no step gains more than the objective's rounding"
+            sigma = max(10.0 * sigma, 1e-12)
             first = False
-            if damping > 1e12:
+            if sigma > 1e6:
                 return z, f, it, False, "no step decreases the objective"
         if log is not None:
-            log(it, fn, predicted, f - fn, damping, t)
+            log(it, fn, predicted, f - fn, sigma, t)
         z, f, g = z + dz, fn, gn
-        damping = max(damping / 10.0, 1e-12)
+        sigma = max(sigma / 10.0, 1e-12)
         history.append(f)
         if len(history) > STALL_ITERATIONS and history[-STALL_ITERATIONS - 1] - f <= STALL_GAIN * max(abs(f), OBJECTIVE_FLOOR):
             # creeping along a direction of almost no curvature: what is left is below any tolerance
