@@ -109,6 +109,14 @@ def test_16_15_plays_steadily_and_says_why(walk):
     assert "frames 0-1" in warning and "capture glitch" in warning
 
 
+def test_a_glitch_in_another_reference_is_filled_and_named(walk):
+    clean = sine_walk(walk)
+    answer = solve("guided", clean, Request(None, 0.6, (), Settings(reference=glitched_walk(walk, 0, 2))))
+    assert middle_cv(answer.curve, clean.fps) < 0.02
+    (warning,) = answer.report.summary["warnings"]
+    assert warning.startswith("reference frames 0-1")
+
+
 @pytest.mark.parametrize("scale", [0.6, 1.5])
 def test_a_real_flight_is_not_a_glitch(jump, scale, monkeypatch):
     from retime.physics.model.contacts import foot_contacts

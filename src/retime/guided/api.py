@@ -292,7 +292,7 @@ def _without_glitches(x, z, motion, reference):
     if z is x:
         return x_filled, x_filled, warnings
     ref_glitches = find_glitches(z, reference.fps)
-    warnings += ["reference: " + g.message(reference.fps) for g in ref_glitches]
+    warnings += [g.message(reference.fps, "reference") for g in ref_glitches]
     return x_filled, fill_glitches(z, ref_glitches) if ref_glitches else z, warnings
 
 

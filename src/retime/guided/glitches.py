@@ -31,11 +31,11 @@ class Glitch:
     last: int  # last glitch frame (inclusive)
     ratio: float  # the larger jump at its edges, in local median changes
 
-    def message(self, fps: float) -> str:
+    def message(self, fps: float, clip: str = "source") -> str:
         at = f"({self.first / fps:.3f} s)"
         frames = (f"frame {self.first} {at} looks" if self.first == self.last
                   else f"frames {self.first}-{self.last} {at} look")
-        return (f"source {frames} like a capture glitch (the pose jumps "
+        return (f"{clip} {frames} like a capture glitch (the pose jumps "
                 f"{self.ratio:.0f}x the median change); played as a gap")
 
 
