@@ -29,6 +29,7 @@ import numpy as np
 
 from retime.errors import RetimeError
 from retime.guided.features import FeatureWeights, analysis_samples, pose_pair
+from retime.guided.glitches import fill_glitches, find_glitches
 from retime.guided.heuristic import solve_heuristic, solve_upper_bound
 from retime.guided.method import SCORES  # noqa: F401 (the scores' names, where callers found them)
 from retime.guided.postprocess import moving_average
@@ -61,6 +62,7 @@ class GuidedResult:
     analysis_fps: float
     upsample: list = field(default_factory=list)  # grid frames per analysis frame, per segment
     stats: SolveStats = field(default_factory=SolveStats)
+    warnings: list = field(default_factory=list)  # for the user: capture glitches played as gaps
 
 
 def _check_reference(motion: Motion, reference: Motion):
@@ -194,6 +196,7 @@ def guided_result(motion: Motion, settings, request) -> GuidedResult:
 
     # --- poses on the grid and at the analysis rate
     x_src, z_src = pose_pair(motion, reference, weights.root_height)
+    x_src, z_src, warnings = _without_glitches(x_src, z_src, motion, reference)
     grid, fixed = [], {}
     for q in range(len(src) - 1):
         N = max(1, int(round((src[q + 1] - src[q]) * A * ups[q])))
@@ -277,7 +280,20 @@ def guided_result(motion: Motion, settings, request) -> GuidedResult:
         curve = blended(spline, curve, blend, motion.fps, [t for _, t in keys])
     stats.extra["total_s"] = time.perf_counter() - t_start
     return GuidedResult(curve, raw, objective, exact, frames, out_t, src_t, n, len(frames),
-                        z.shape[0], s, neighbors, A, ups, stats)
+                        z.shape[0], s, neighbors, A, ups, stats, warnings)
+
+
+def _without_glitches(x, z, motion, reference):
+    """The input's and the reference's poses with their capture glitches filled as gaps
+    (:mod:`retime.guided.glitches`), and a warning for each."""
+    glitches = find_glitches(x, motion.fps)
+    warnings = [g.message(motion.fps) for g in glitches]
+    x_filled = fill_glitches(x, glitches) if glitches else x
+    if z is x:
+        return x_filled, x_filled, warnings
+    ref_glitches = find_glitches(z, reference.fps)
+    warnings += [g.message(reference.fps, "reference") for g in ref_glitches]
+    return x_filled, fill_glitches(z, ref_glitches) if ref_glitches else z, warnings
 
 
 def blended(spline: TimingCurve, guided: TimingCurve, weight: float, fps: float, keys_out=()) -> TimingCurve:

@@ -75,7 +75,7 @@ def solve(motion, request: Request) -> Result:
     settings = settings_record(s, leave_out=("reference", "weights"))
     settings["reference"] = "input" if s.reference is None else "given"
     report = Report(summary(NAME, result.curve, motion.fps, keytime_phases(result.curve, request.keytimes), timings,
-                            objective=float(result.objective), exact=bool(result.exact), settings=settings))
+                            warnings=result.warnings, objective=float(result.objective), exact=bool(result.exact), settings=settings))
     info = {"objective": float(result.objective), "exact": bool(result.exact), "n": result.n, "m": result.m,
             "r": result.r, "s": result.s, "k": result.k}
     return Result(result.curve, report, info=info, detail=result)
