@@ -137,6 +137,13 @@ def write_outputs(args, name, motion, result, retimed=None):
 
     retimed = write_retiming(name, motion, result, args.output, args.warp, source=args.motion, retimed=retimed)
     said_written(args, motion, retimed)
+    say_warnings(result.report.summary)
+
+
+def say_warnings(summary):
+    """The method's warnings from its report (every method's report has the list)."""
+    for warning in summary.get("warnings", []):
+        print(f"warning: {warning}")
 
 
 def said_written(args, motion, retimed):

@@ -103,8 +103,6 @@ def run(args):
     answer = solve("guided", motion, Request(args.duration, args.scale, args.keytime, settings))
     retimed = adaptive_smooth(motion, answer.curve) if args.adaptive_smoothing else None  # None: through the curve
     write_outputs(args, "guided", motion, answer, retimed)
-    for warning in answer.report.summary["warnings"]:
-        print(f"warning: {warning}")
     if not args.quiet:
         i, t = answer.info, answer.report.summary["timings"]
         kind = "exact" if i["exact"] else "heuristic"

@@ -7,7 +7,7 @@ import math
 from ..physics.constants import MAX_GRAVITY, G
 from ..physics.method import MASS_FACTORS, OBJECTIVES, OPTIMIZER_NAMES, STARTS, Settings
 from .common import add_duration_args, add_motion_args, add_output_args, check_output, load_input, positive_float, \
-    said_written
+    said_written, say_warnings
 
 EPILOG = """examples:
   retime physics 16_06.amc -o half.bvh --scale 0.5 --report half.json
@@ -124,8 +124,7 @@ def run(args):
     s = result.report["summary"]
     for note in s.get("conform_notes", []):
         print(f"note: {note}")
-    for warning in s.get("warnings", []):
-        print(f"warning: {warning}")
+    say_warnings(s)
     if not args.quiet:
         least = s.get("least_duration")
         if duration is not None and least is not None and duration < least - 0.5 / m.fps:
