@@ -623,8 +623,8 @@ def _next_price(history, M, spread, slope):
     the scores' count per unit price, until two prices are known)."""
     below, above = _nearest_either_side(history, M)
     if below is not None and above is not None:
-        (pa, ca, da), (pb, cb, db) = below, above
-        peak = (db - da + (ca - M) * pa - (cb - M) * pb) / (ca - cb)
+        pa, pb = below[0], above[0]
+        peak, _ = _supergradients_cross(below, above, M)
         return min(max(peak, pa + 0.05 * (pb - pa)), pb - 0.05 * (pb - pa))
     price, count = history[-1][0], history[-1][1]
     if len(history) >= 2 and history[-2][1] != count:
@@ -650,9 +650,15 @@ def _dual_ceiling(history, M):
     below, above = _nearest_either_side(history, M)
     if below is None or above is None:
         return math.inf
+    return _supergradients_cross(below, above, M)[1]
+
+
+def _supergradients_cross(below, above, M):
+    """(price, dual value) where the dual's supergradient lines at two (price, count, dual value)
+    triples, one with more than M steps and one with fewer, cross."""
     (pa, ca, da), (pb, cb, db) = below, above
     peak = (db - da + (ca - M) * pa - (cb - M) * pb) / (ca - cb)
-    return da + (ca - M) * (peak - pa)
+    return peak, da + (ca - M) * (peak - pa)
 
 
 def step_price(cost_into, level, rho, kmin, kmax, M, relaxations=RELAXATIONS, tolerance=PRICE_TOLERANCE):
