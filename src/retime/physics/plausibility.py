@@ -213,7 +213,7 @@ def _unit_that_fits(flight: FlightGravity, frame) -> tuple[str, float] | None:
 
 def _leg_in(frame, mpu: float) -> float:
     """The skeleton's leg (thigh + shank, m) were 1 unit ``mpu`` metres (nan: not measured)."""
-    return float(getattr(frame, "leg_m", np.nan)) * mpu / frame.meters_per_unit
+    return float(frame.leg_m) * mpu / frame.meters_per_unit
 
 
 def _human_in(frame, mpu: float) -> bool:
