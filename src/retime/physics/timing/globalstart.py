@@ -76,7 +76,7 @@ def speed_levels(w_lo=0.05, w_hi=12.0, levels=320) -> np.ndarray:
     return np.exp((np.arange(levels) - k0) * step)
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _sample(m, u, v, ob, cache, d_tol):
     """The objective's integrand f at frame m and whether (u, v) lies outside its region by more than
     d_tol (in the penalty's own measure)."""
@@ -88,7 +88,7 @@ def _sample(m, u, v, ob, cache, d_tol):
 
 # parallel=True doubles its compile (2.0 s -> 4.1 s, paid once, at install) and pays on long clips
 # (the 2-minute capture: 15.0 s instead of 18.5 s); each edge writes only its own cells
-@njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
+@njit(cache=True, parallel=True, error_model="numpy")
 def _edge_costs(nodes, times, w, band, ob, d_tol, u_max, cost, outt, dur):
     """Objective cost[e, j, k], output time outside the regions outt[e, j, k] and output time
     dur[e, j, k] of the edge from (nodes[e], w[j]) to (nodes[e + 1], w[j + k - band])."""
@@ -130,7 +130,7 @@ def _edge_costs(nodes, times, w, band, ob, d_tol, u_max, cost, outt, dur):
     return cost, outt, dur
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True)
 def _shortest(cost, outt, kappa, dur, mu, band):
     """Least sum of cost + kappa * outt + mu * dur over paths through the banded grid (edge (e, j, k) goes from level
     j to level j + k - band); returns (levels per node, duration, value)."""
@@ -168,7 +168,7 @@ def _shortest(cost, outt, kappa, dur, mu, band):
     return path, T, best
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _outside(nodes, times, speed, ob, d_tol, out):
     """out[m] = frame m lies outside its region (beyond d_tol) on the path's speed profile."""
     cache = np.zeros(len(ob.poff) - 1, dtype=np.int64)

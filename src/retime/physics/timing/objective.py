@@ -399,7 +399,7 @@ def _bake_kernel(a, b, c, tgt, act, N, rows, poff, px, py, cen, lam, clam, mode,
 # Evaluation
 # ------------------------------------------------------------------------------------------------
 
-@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _frame_parts(i, u0, v0, ob, cache):
     """Frame i at (u, v) = (p'', p'^2) of the baked arrays ``ob``: the torque term g and its gradient
     (gu, gv), the offset (du, dv) from the region's closest point and its square d2 (in the frame's
@@ -473,7 +473,7 @@ def _frame_parts(i, u0, v0, ob, cache):
     return g, gu, gv, du, dv, du * du + dv * dv, su, sv
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _wedge_quadratic(wc, kw, u0, v0):
     """The torque term of wedge row ``kw`` at (u, v) and its gradient."""
     w0, w1, w2, w3, w4, w5 = wc[kw, 0], wc[kw, 1], wc[kw, 2], wc[kw, 3], wc[kw, 4], wc[kw, 5]
@@ -481,7 +481,7 @@ def _wedge_quadratic(wc, kw, u0, v0):
     return g, 2.0 * w1 * u0 + w2 * v0 + w4, 2.0 * w0 * v0 + w2 * u0 + w3
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _angle_between(a, b):
     """(b - a) mod 2 pi, in [0, 2 pi)."""
     x = b - a
@@ -490,7 +490,7 @@ def _angle_between(a, b):
     return x
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _smooth_step(x):
     """(S, dS/dx) of the C2 step from 0 at x <= -1 to 1 at x >= 1 (S(0) = 1/2, S(-x) = 1 - S(x))."""
     if x <= -1.0:
@@ -500,7 +500,7 @@ def _smooth_step(x):
     return fan_blend_weight(x)
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _near_a_ray(p0, nv, k, u, v, cu, cv, px, py, eps):
     """Is (u, v) within the smoothing band of either ray of wedge k? Without trigonometry (the usual
     answer is no): the angle from a ray is below the band iff it points the same way and
@@ -516,7 +516,7 @@ def _near_a_ray(p0, nv, k, u, v, cu, cv, px, py, eps):
     return (dot0 > 0.0 and r0x * dy - r0y * dx < tb * dot0) or (dot1 > 0.0 and dx * r1y - dy * r1x < tb * dot1)
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _fan_blend(p0, nv, k, u, v, u0, v0, su, sv, cu, cv, ray, wc, eps, g, gu, gv):
     """The torque term mollified in the fan's angle (see :data:`FAN_BLEND`): each wedge q's
     quadratic weighted by psi_q = S((phi - theta_q) / b) - S((phi - theta_{q+1}) / b), its indicator
@@ -577,14 +577,14 @@ def _fan_blend(p0, nv, k, u, v, u0, v0, su, sv, cu, cv, ray, wc, eps, g, gu, gv)
     return tot, tu, tv
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def fan_blend_weight(x):
     """(w, dw/dx) of the C2 step from 0 at x = -1 to 1 at x = 1 (w(0) = 1/2, w(-x) = 1 - w(x))."""
     x2 = x * x
     return 0.5 + x * (15.0 - 10.0 * x2 + 3.0 * x2 * x2) / 16.0, 15.0 * (1.0 - x2) * (1.0 - x2) / 16.0
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def penalty(d2, alpha, delta):
     """The feasibility term of a squared distance d2: alpha d2 (Eq. 14, delta <= 0) or the exact penalty
     alpha (sqrt(d2 + delta^2) - delta)."""
@@ -595,7 +595,7 @@ def penalty(d2, alpha, delta):
     return alpha * (math.sqrt(d2 + delta * delta) - delta)
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _frame_eval(i, u0, v0, ob, cache):
     """f, df/du, df/dv of frame i at (u, v) = (p'', p'^2) (polygon and centre in the frame's metric)."""
     alpha, delta = ob.alpha, ob.delta
@@ -609,7 +609,7 @@ def _frame_eval(i, u0, v0, ob, cache):
     return alpha * (r - delta) + g, k * du * su + gu, k * dv * sv + gv
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _span_poly(c, Msp, n_span):
     Asp = np.empty((n_span, 4))
     for m in range(n_span):
@@ -621,7 +621,7 @@ def _span_poly(c, Msp, n_span):
     return Asp
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _invert(a0, a1, a2, a3, sj, x, h, S, steps):
     """x in [0, h] with a0 + a1 x + a2 x^2 + a3 x^3 = sj (increasing cubic): ``steps`` Newton steps from
     the guess x, a safeguarded bisection-Newton only if they miss the tolerance."""
@@ -654,7 +654,7 @@ def _invert(a0, a1, a2, a3, sj, x, h, S, steps):
     return x
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _chunk(j0, j1, Asp, T, S, breaks, Msp, ob, cache, want_grad, gc):
     """Samples j0..j1-1 of the objective (see _evaluate); gradient added into gc."""
     s, omega, fi, fw, gamma = ob.s, ob.omega, ob.fi, ob.fw, ob.gamma
@@ -732,7 +732,7 @@ def _chunk(j0, j1, Asp, T, S, breaks, Msp, ob, cache, want_grad, gc):
     return total, gT
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _evaluate(c, T, breaks, Msp, ob, cache, want_grad, gc):
     """Objective (and gradient w.r.t. c and T when want_grad) of the spline with coefficients c."""
     Asp = _span_poly(c, Msp, len(breaks) - 1)
@@ -741,7 +741,7 @@ def _evaluate(c, T, breaks, Msp, ob, cache, want_grad, gc):
     return _chunk(0, len(ob.s), Asp, T, c[len(c) - 1], breaks, Msp, ob, cache, want_grad, gc)
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", parallel=True)
+@njit(cache=True, error_model="numpy", parallel=True)
 def _evaluate_par(nch, c, T, breaks, Msp, ob, cache, want_grad, gc):
     """_evaluate split into ``nch`` chunks of samples run on parallel threads."""
     Asp = _span_poly(c, Msp, len(breaks) - 1)
@@ -940,7 +940,7 @@ def unbaked(pd, regions, target, obj: BakedObjective) -> UnbakedObjective:
                             obj.beta / obj.tau_scale ** 2)
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _evaluate_unbaked(c, T, breaks, Msp, ob, cache, a, b, cc, tgt, N, lam_aff, tscale):
     s, omega, fi, poff, mode, wc, gamma = ob.s, ob.omega, ob.fi, ob.poff, ob.mode, ob.wc, ob.gamma
     n_span = len(breaks) - 1
