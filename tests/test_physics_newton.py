@@ -12,8 +12,8 @@ sys.path.insert(0, os.path.dirname(__file__))
 import physics_synth as ps  # noqa: E402
 
 from retime.physics.api import make_problem  # noqa: E402
-from retime.physics.timing.newton import BAND, BandedCoordinates, BandedObjective, banded_hessian, \
-    difference_steps  # noqa: E402
+from retime.physics.timing.newton import BandedCoordinates, BandedObjective, banded_hessian, \
+    definite_shift, difference_steps, solve_arrowhead  # noqa: E402
 from retime.physics.timing.optimize import KKT_TOL, solve  # noqa: E402
 
 
@@ -35,21 +35,19 @@ def _dense_hessian(fun, z, steps):
 
 def _from_band(ab, col, corner):
     n_c = ab.shape[1]
+    band = ab.shape[0] - 1
     n = n_c + (col is not None)
     H = np.zeros((n, n))
-    for off in range(BAND + 1):
+    for off in range(band + 1):
         for k in range(off, n_c):
-            H[k - off, k] = H[k, k - off] = ab[BAND - off, k]
+            H[k - off, k] = H[k, k - off] = ab[band - off, k]
     if col is not None:
         H[:n_c, -1] = H[-1, :n_c] = col
         H[-1, -1] = corner
     return H
 
 
-@pytest.mark.parametrize("free", [False, True])
-def test_banded_hessian_equals_the_dense_one(quarter_jump, free):
-    """The 7-colour band (and the duration's arrow) holds every nonzero of the Hessian: the dense
-    difference Hessian has nothing outside the band, and the coloured one equals it."""
+def _banded_setup(quarter_jump, free):
     pd, rs, obj = quarter_jump
     S = pd.times[-1]
     pr = make_problem(obj, S, None if free else 0.9 * S, knot_spacing=0.2, start="uniform")
@@ -58,13 +56,43 @@ def test_banded_hessian_equals_the_dense_one(quarter_jump, free):
     z, c0 = co.from_w(w)
     fun = BandedObjective(co, c0)
     steps = difference_steps(co, z)
-    dense = _dense_hessian(fun, z, steps)
+    return co, z, fun, steps, _dense_hessian(fun, z, steps)
+
+
+@pytest.mark.parametrize("free", [False, True])
+def test_banded_hessian_equals_the_dense_one(quarter_jump, free):
+    """The band the spline gives (3 for the cubic: 7 colours) and the duration's arrow hold every
+    nonzero of the Hessian: the dense difference Hessian has nothing outside the band, and the
+    coloured one equals it."""
+    co, z, fun, steps, dense = _banded_setup(quarter_jump, free)
     n_c = len(co.free)
+    assert co.band == 3  # a sample of the cubic reads four coefficients
     assert co.free_T == free and dense.shape[0] == n_c + free
-    outside = np.abs(np.triu(dense[:n_c, :n_c], BAND + 1)).max()
+    outside = np.abs(np.triu(dense[:n_c, :n_c], co.band + 1)).max()
     assert outside <= 1e-9 * np.abs(dense).max()
     coloured = _from_band(*banded_hessian(fun, z, steps))
     assert np.abs(coloured - dense).max() <= 1e-6 * np.abs(dense).max()
+
+
+@pytest.mark.parametrize("free", [False, True])
+def test_a_wider_band_gives_the_same_hessian_and_steps(quarter_jump, free):
+    """Nothing assumes the cubic's band: with the band set to 5 (a quintic spline's), the colouring
+    (11 colours) still gives the dense Hessian, its extra diagonals are zero, and the shifted Newton
+    step on the wider band equals the dense solve of (H + s I) x = -g."""
+    co, z, fun, steps, dense = _banded_setup(quarter_jump, free)
+    co.band = 5
+    ab, col, corner = banded_hessian(fun, z, steps)
+    assert ab.shape[0] == 6
+    assert np.abs(ab[:2]).max() <= 1e-9 * np.abs(dense).max()  # offsets 4 and 5: no sample reads both
+    assert np.abs(_from_band(ab, col, corner) - dense).max() <= 1e-6 * np.abs(dense).max()
+    shift, scale = definite_shift(ab, col, corner)
+    s = shift + 1e-3 * scale
+    g = fun(z)[1]
+    H = _from_band(ab, col, corner)
+    x = solve_arrowhead(ab, col, corner, g, s)
+    assert x is not None
+    assert np.allclose(x, np.linalg.solve(H + s * np.eye(len(g)), -g), rtol=1e-8, atol=1e-12 * np.abs(x).max())
+    assert np.linalg.eigvalsh(H + s * np.eye(len(g))).min() > 0  # the shift found makes it definite
 
 
 def test_coordinates_map_back_to_the_same_curve(quarter_jump):
