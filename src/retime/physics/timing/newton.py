@@ -1,14 +1,14 @@
 """Newton's method on the banded problem: the polish after L-BFGS (issue 24).
 
-The objective is a sum over source samples, each of which reads four consecutive spline
-coefficients c_m..c_{m+3} (and the duration T). In the coordinates (c, T) -- the interior
+The objective is a sum over source samples, each of which reads ``TimingSpline.support`` = 5 consecutive
+spline coefficients c_m..c_{m+4} (the quartic, and the duration T). In the coordinates (c, T) -- the interior
 coefficients that are not pinned (ends, locks), plus T when the duration is free -- its Hessian is
-therefore **banded** (bandwidth 3) with one dense row and column for T: an arrowhead. (In the
+therefore **banded** (bandwidth ``TimingSpline.band`` = 4) with one dense row and column for T: an arrowhead. (In the
 optimizer's w, each c is a normalized cumulative sum of all of them, so the same Hessian is dense.)
 
 * **Hessian:** central differences of the analytic gradient with graph colouring: the coefficients
-  ``k = r (mod 7)`` are stepped together (two columns of one colour are at least 7 apart, so no
-  sample reads both and every gradient entry changes by one of them only), T alone; 2 x 7 (2 x 8
+  ``k = r (mod 9)`` are stepped together (two columns of one colour are at least 9 apart, so no
+  sample reads both and every gradient entry changes by one of them only), T alone; 2 x 9 (2 x 10
   with a free duration) gradients per Hessian whatever the clip's length.
 * **Step:** Newton with a shift (H + (s0 + sigma) I, s0 the least of 0, 1e-12 x 4^k of the largest
   curvature that makes the Cholesky succeed, :func:`definite_shift`; Cholesky of the band by
@@ -30,7 +30,7 @@ optimizer's w, each c is a normalized cumulative sum of all of them, so the same
   truncation: a step that would leave them is shortened to stay inside (fraction to the boundary).
   A step that a bound blocks entirely ends the polish ("a speed bound blocks the step").
 * **Keytimes** p(t*) = s* by the augmented Lagrangian, as in :mod:`retime.physics.timing.optimize`: their residuals
-  read four coefficients (and T), so the penalty keeps the band.
+  read five coefficients (and T), so the penalty keeps the band.
 * **The torque term's kinks** at the fan's rays are mollified in the objective itself
   (:data:`retime.physics.timing.objective.FAN_BLEND`); without that neither L-BFGS nor Newton converged.
 * **The l1 penalty's kink** is the smooth equivalent the objective already uses,
@@ -51,8 +51,9 @@ import numpy as np
 from scipy.linalg import cho_solve_banded, cholesky_banded, LinAlgError
 
 from .objective import evaluate_c
+from .spline import TimingSpline
 
-BAND = 3  # a sample reads c_m .. c_{m+3}
+BAND = TimingSpline.degree  # a sample reads c_m .. c_{m+BAND} (TimingSpline.band)
 COLOURS = 2 * BAND + 1
 STALL_ITERATIONS = 10
 BACKTRACKS = 4
