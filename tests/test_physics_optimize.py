@@ -73,10 +73,49 @@ def test_knot_insertion_keeps_the_curve_and_removal_refits():
     t = np.linspace(0, 2, 501)
     before = sp(t)
     sp.insert_knot(0.537)
-    assert len(sp.w) == 13
+    assert len(sp.w) == 10 + sp.degree  # 10 interior knots now
     assert np.max(np.abs(sp(t) - before)) < 1e-12
     sp.remove_knot(3)
     assert np.max(np.abs(sp(t) - before)) < 0.02 * 3.0
+
+
+class _CubicSpline(TimingSpline):
+    degree = 3  # the paper's cubic, as the timing spline was before issue 24
+
+
+def _accel_at_source_time(sp, s, w):
+    """p'' at the output time where source time ``s`` plays: what a fixed source sample reads."""
+    return float(sp.accel(sp.inverse(np.array([s]), w), w)[0])
+
+
+@pytest.mark.parametrize("spline_class", [_CubicSpline, TimingSpline])
+def test_third_derivative_is_continuous_across_knots_only_for_the_quartic(spline_class):
+    """The root of issue 24's kinks (131_01, 131_03): a sample at fixed source time s reads
+    p''(p^-1(s)); where p^-1(s) is a knot its derivative along a coefficient is one-sided unless p'''
+    is continuous there. Finite differences on each side of every interior knot, of p'' in t and of
+    the sample's p'' in w: they jump for the cubic and agree for the quartic."""
+    rng = np.random.default_rng(4)
+    sp = spline_class.uniform(3.0, 7, 2.0)
+    sp.w = np.exp(0.4 * rng.normal(size=sp.w.size))
+    T, h = sp.duration, 1e-5
+    jumps_t, jumps_w, scale = [], [], []
+    for knot in sp.interior * T:
+        left = (sp.accel(knot) - sp.accel(knot - h)) / h
+        right = (sp.accel(knot + h) - sp.accel(knot)) / h
+        jumps_t.append(abs(right - left))
+        scale.append(abs(right) + abs(left))
+        s = float(sp(knot))
+        k = int(np.searchsorted(sp.xi, knot / T)) - 1  # a w the knot's span reads
+        e = np.zeros(sp.w.size)
+        e[k] = 1e-4
+        mid = _accel_at_source_time(sp, s, sp.w)
+        up = (_accel_at_source_time(sp, s, sp.w + e) - mid) / 1e-4
+        down = (mid - _accel_at_source_time(sp, s, sp.w - e)) / 1e-4
+        jumps_w.append(abs(up - down) / (abs(up) + abs(down)))
+    if spline_class.degree == 3:
+        assert min(jumps_t) > 1e-2 * max(scale) and max(jumps_w) > 1e-2
+    else:
+        assert max(jumps_t) < 1e-3 * max(scale) and max(jumps_w) < 1e-3
 
 
 @pytest.fixture(scope="module")
@@ -245,7 +284,8 @@ def test_knot_removal_refits_like_the_dense_least_squares():
     old = sp.copy()
     sp.remove_knot(17)
     xi1 = sp.xi[1:-1]
-    tau = np.linspace(0, 1, 40 * (len(sp.interior) + 3))
-    dense = np.linalg.lstsq(BSpline.design_matrix(tau, xi1, 2).toarray(), old.speed(tau * old.duration), rcond=None)[0]
+    tau = np.linspace(0, 1, 40 * (len(sp.interior) + sp.degree))
+    D = BSpline.design_matrix(tau, xi1, sp.degree - 1)  # of p'
+    dense = np.linalg.lstsq(D.toarray(), old.speed(tau * old.duration), rcond=None)[0]
     assert len(sp.w) == len(old.w) - 1
     assert np.allclose(sp.w, np.maximum(dense, 1e-3), atol=1e-9)

@@ -1,7 +1,7 @@
 """Newton's method on the banded problem: the polish after L-BFGS (issue 24).
 
 The objective is a sum over source samples, each of which reads the coefficients of one span of
-the timing spline, c_m..c_{m+b} (b + 1 = 4 for the cubic; :attr:`BandedCoordinates.band` reads b
+the timing spline, c_m..c_{m+b} (b = the spline's degree, 4 for the quartic; :attr:`BandedCoordinates.band` reads b
 from the spline's span matrices), and the duration T. In the coordinates (c, T) -- the interior
 coefficients that are not pinned (ends, locks), plus T when the duration is free -- its Hessian is
 therefore **banded** (half-bandwidth b) with one dense row and column for T: an arrowhead. (In the
@@ -10,7 +10,7 @@ optimizer's w, each c is a normalized cumulative sum of all of them, so the same
 * **Hessian:** central differences of the analytic gradient with graph colouring: the coefficients
   ``k = r (mod 2 b + 1)`` are stepped together (two columns of one colour are at least 2 b + 1
   apart, so no sample reads both and every gradient entry changes by one of them only), T alone;
-  2 x 7 (2 x 8 with a free duration) gradients per Hessian for the cubic, whatever the clip's
+  2 x 9 (2 x 10 with a free duration) gradients per Hessian for the quartic, whatever the clip's
   length. (Forward differences, half as many gradients, were measured and not kept: 7-15% less time
   on the bundled clips, but a worse KKT residual at the stop and twice the Newton iterations on 16_16.)
 * **Step:** Newton with a shift (H + (s0 + sigma) I, s0 the least of 0, 1e-12 x 4^k of the largest
@@ -33,7 +33,7 @@ optimizer's w, each c is a normalized cumulative sum of all of them, so the same
   truncation: a step that would leave them is shortened to stay inside (fraction to the boundary).
   A step that a bound blocks entirely ends the polish ("a speed bound blocks the step").
 * **Keytimes** p(t*) = s* by the augmented Lagrangian, as in :mod:`retime.physics.timing.optimize`: their residuals
-  read four coefficients (and T), so the penalty keeps the band.
+  read five coefficients (and T), so the penalty keeps the band.
 * **The torque term's kinks** at the fan's rays are mollified in the objective itself
   (:data:`retime.physics.timing.objective.FAN_BLEND`); without that neither L-BFGS nor Newton converged.
 * **The l1 penalty's kink** is the smooth equivalent the objective already uses,

@@ -33,7 +33,7 @@ or blends the two frames around it (``"linear"``, as the paper interpolates the 
 sample's output time is found by inverting the spline (Newton,
 amortized by locality), so the set of samples and their frames never change during optimization
 and the objective is smooth in the spline's parameters. Its gradient is analytic: with respect to the
-coefficients c and the duration T (each sample touches four coefficients), then through
+coefficients c and the duration T (each sample touches the spline's ``support`` = 5 coefficients), then through
 :meth:`TimingSpline.chain` to the optimizer's variables.
 """
 from __future__ import annotations
@@ -611,40 +611,65 @@ def _frame_eval(i, u0, v0, ob, cache):
 
 @njit(cache=True, error_model="numpy")
 def _span_poly(c, Msp, n_span):
-    Asp = np.empty((n_span, 4))
+    """Per span, the power coefficients of p in x = tau - break (row m: a_0 .. a_q)."""
+    q1 = Msp.shape[1]
+    Asp = np.empty((n_span, q1))
     for m in range(n_span):
-        for r in range(4):
+        for r in range(q1):
             acc = 0.0
-            for l in range(4):
+            for l in range(q1):
                 acc += Msp[m, r, l] * c[m + l]
             Asp[m, r] = acc
     return Asp
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _invert(a0, a1, a2, a3, sj, x, h, S, steps):
-    """x in [0, h] with a0 + a1 x + a2 x^2 + a3 x^3 = sj (increasing cubic): ``steps`` Newton steps from
+def _horner(A, m, x):
+    """(P, P', P'', p''') at x of the polynomial with power coefficients A[m, :] (Horner, with derivatives)."""
+    v, d1, d2, d3 = 0.0, 0.0, 0.0, 0.0
+    for r in range(A.shape[1] - 1, -1, -1):
+        d3 = d3 * x + d2
+        d2 = d2 * x + d1
+        d1 = d1 * x + v
+        v = v * x + A[m, r]
+    return v, d1, 2.0 * d2, 6.0 * d3
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _horner_column(M, m, l, x):
+    """(N, N', N'') at x of basis function l of span m (power coefficients M[m, :, l])."""
+    v, d1, d2 = 0.0, 0.0, 0.0
+    for r in range(M.shape[1] - 1, -1, -1):
+        d2 = d2 * x + d1
+        d1 = d1 * x + v
+        v = v * x + M[m, r, l]
+    return v, d1, 2.0 * d2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _invert(A, m, sj, x, h, S, steps):
+    """x in [0, h] with span m's polynomial A[m] (increasing) equal to sj: ``steps`` Newton steps from
     the guess x, a safeguarded bisection-Newton only if they miss the tolerance."""
     ok = False
     if 0.0 <= x <= h:
         for _ in range(steps):
-            d = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
+            fx, d, _, _ = _horner(A, m, x)
             if d <= 0.0:
                 break
-            x -= (a0 + x * (a1 + x * (a2 + x * a3)) - sj) / d
-        ok = 0.0 <= x <= h and abs(a0 + x * (a1 + x * (a2 + x * a3)) - sj) <= 1e-12 * (1.0 + S)
+            x -= (fx - sj) / d
+        ok = 0.0 <= x <= h and abs(_horner(A, m, x)[0] - sj) <= 1e-12 * (1.0 + S)
     if not ok:
         lo, hi = 0.0, h
         x = 0.5 * h
         for _ in range(80):
-            fx = a0 + x * (a1 + x * (a2 + x * a3)) - sj
+            fx, d, _, _ = _horner(A, m, x)
+            fx -= sj
             if abs(fx) <= 1e-13 * (1.0 + S):
                 break
             if fx > 0:
                 hi = x
             else:
                 lo = x
-            d = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
             xn = x - fx / d if d > 0 else 0.5 * (lo + hi)
             if xn <= lo or xn >= hi:
                 xn = 0.5 * (lo + hi)
@@ -685,17 +710,14 @@ def _chunk(j0, j1, Asp, T, S, breaks, Msp, ob, cache, want_grad, gc):
             P2 = 2.0 * Asp[m, 2]
             s_prev = Asp[m, 0]
         h = breaks[m + 1] - breaks[m]
-        a0, a1, a2, a3 = Asp[m, 0], Asp[m, 1], Asp[m, 2], Asp[m, 3]
         # second-order predictor from the previous sample (the inverse function's Taylor series), one
         # Newton step; bisection only if that misses the tolerance
         if P1 > 0.0:
             ds = (sj - s_prev) / P1
             x += ds - 0.5 * P2 * ds * ds / P1
-        x = _invert(a0, a1, a2, a3, sj, x, h, S, 1)
+        x = _invert(Asp, m, sj, x, h, S, 1)
         s_prev = sj
-        P1 = a1 + x * (2.0 * a2 + 3.0 * a3 * x)
-        P2 = 2.0 * a2 + 6.0 * a3 * x
-        P3 = 6.0 * a3
+        _, P1, P2, P3 = _horner(Asp, m, x)
         pd = P1 * invT
         pdd = P2 * invT * invT
         u = pdd
@@ -721,10 +743,8 @@ def _chunk(j0, j1, Asp, T, S, breaks, Msp, ob, cache, want_grad, gc):
             hp = om * (2.0 * fv - (f + gamma) * ipd * ipd + gamma)
             hpp = om * fu * ipd
             gT += hp * (-pd * invT) + hpp * (-2.0 * pdd * invT)
-            for l in range(4):
-                N0 = Msp[m, 0, l] + x * (Msp[m, 1, l] + x * (Msp[m, 2, l] + x * Msp[m, 3, l]))
-                N1 = Msp[m, 1, l] + x * (2.0 * Msp[m, 2, l] + 3.0 * x * Msp[m, 3, l])
-                N2 = 2.0 * Msp[m, 2, l] + 6.0 * x * Msp[m, 3, l]
+            for l in range(Msp.shape[2]):
+                N0, N1, N2 = _horner_column(Msp, m, l, x)
                 dtau = -N0 / P1
                 dpd = (N1 + P2 * dtau) * invT
                 dpdd = (N2 + P3 * dtau) * invT * invT
@@ -875,24 +895,30 @@ def _penalty_numpy(d2, alpha, delta):
 
 def evaluate_numpy(obj: BakedObjective, spline, w=None) -> float:
     """Twin of :func:`evaluate` (the value): each sample's output time by bisection on its span's
-    cubic, each frame term by :func:`frame_terms_numpy`."""
+    polynomial, each frame term by :func:`frame_terms_numpy`."""
     ob = obj.arrays
     w = spline.w if w is None else w
     c = spline.coefficients(w)
     T = spline.duration_of(w)
     breaks, Msp = spline.breaks, spline.span_matrices
-    n_span = len(breaks) - 1
-    Asp = np.einsum("mrl,ml->mr", Msp, c[np.arange(n_span)[:, None] + np.arange(4)])  # s(x) per span
+    n_span, q1 = len(breaks) - 1, Msp.shape[1]
+    Asp = np.einsum("mrl,ml->mr", Msp, c[np.arange(n_span)[:, None] + np.arange(q1)])  # s(x) per span
     m = np.clip(np.searchsorted(Asp[:, 0], ob.s, side="right") - 1, 0, n_span - 1)
-    a0, a1, a2, a3 = Asp[m].T
+    A = Asp[m]
+    r = np.arange(q1)
+
+    def derivative(x, order):  # of each sample's span polynomial, at x
+        fall = np.prod([np.maximum(r - j, 0) for j in range(order)], axis=0) if order else np.ones(q1)
+        return np.sum(A * fall * x[:, None] ** np.maximum(r - order, 0), axis=1)
+
     lo, hi = np.zeros(len(m)), (breaks[m + 1] - breaks[m]).astype(float)
     for _ in range(200):
         x = 0.5 * (lo + hi)
-        above = a0 + x * (a1 + x * (a2 + x * a3)) > ob.s
+        above = derivative(x, 0) > ob.s
         hi, lo = np.where(above, x, hi), np.where(above, lo, x)
     x = 0.5 * (lo + hi)
-    pd = (a1 + x * (2.0 * a2 + 3.0 * a3 * x)) / T
-    u = (2.0 * a2 + 6.0 * a3 * x) / T ** 2
+    pd = derivative(x, 1) / T
+    u = derivative(x, 2) / T ** 2
     v = pd * pd
     f = np.zeros(len(m))
     for side, weight in ((0, 1.0 - ob.fw), (1, ob.fw)):
@@ -958,10 +984,10 @@ def _evaluate_unbaked(c, T, breaks, Msp, ob, cache, a, b, cc, tgt, N, lam_aff, t
             m += 1
             x = 0.0
         h = breaks[m + 1] - breaks[m]
-        a0, a1, a2, a3 = Asp[m, 0], Asp[m, 1], Asp[m, 2], Asp[m, 3]
-        x = _invert(a0, a1, a2, a3, sj, min(max(x, 0.0), h), h, sj, 2)
-        pd = (a1 + x * (2.0 * a2 + 3.0 * a3 * x)) * invT
-        u = (2.0 * a2 + 6.0 * a3 * x) * invT * invT
+        x = _invert(Asp, m, sj, min(max(x, 0.0), h), h, sj, 2)
+        _, P1, P2, _ = _horner(Asp, m, x)
+        pd = P1 * invT
+        u = P2 * invT * invT
         v = pd * pd
         i = fi[jj]
         # distance term and wedge from the baked geometry (alpha only), torque term per dof

@@ -129,14 +129,15 @@ class Problem:
 
 
 def _basis_at(sp, tau):
-    """Cubic basis values and derivatives (d/dtau) of all coefficients at ``tau`` (span polynomials)."""
+    """Basis values and derivatives (d/dtau) of all coefficients at ``tau`` (span polynomials)."""
     m = int(np.clip(np.searchsorted(sp.breaks, tau, side="right") - 1, 0, len(sp.breaks) - 2))
     x = tau - sp.breaks[m]
     M = sp.span_matrices[m]
+    powers = x ** np.arange(sp.support)
     Nb = np.zeros(sp.n_c)
     dN = np.zeros(sp.n_c)
-    Nb[m:m + 4] = M[0] + x * (M[1] + x * (M[2] + x * M[3]))
-    dN[m:m + 4] = M[1] + x * (2 * M[2] + 3 * x * M[3])
+    Nb[m:m + sp.support] = powers @ M
+    dN[m:m + sp.support] = (np.arange(1, sp.support) * powers[:-1]) @ M[1:]
     return Nb, dN
 
 
@@ -533,7 +534,7 @@ class RetimingSession:
         sp = self.spline
         old = {k: v for k, v in sp.locks.items() if k != index}
         sp.locks = {}
-        knot = int(np.clip(index - 2, 0, len(sp.interior) - 1))
+        knot = int(np.clip(index - (sp.degree + 1) // 2, 0, len(sp.interior) - 1))  # the knot under its Greville point
         sp.remove_knot(knot, w_min=self.problem.w_min)
         new_c = sp.coefficients()
         for v in old.values():

@@ -1,20 +1,27 @@
-"""The retiming curve p(t): a monotone cubic B-spline from output time to source time (sec. 3, 3.6).
+"""The retiming curve p(t): a monotone quartic B-spline from output time to source time (sec. 3, 3.6).
 
-    p(t) = sum_k c_k N_k(t / T),   t in [0, T],   clamped cubic B-spline on knots in [0, 1]
+    p(t) = sum_k c_k N_k(t / T),   t in [0, T],   clamped B-spline of degree q = 4 on knots in [0, 1]
+
+**Why quartic, not the paper's cubic.** The objective samples fixed source times s, at output times
+p^-1(s) that move with the coefficients. As a sample crosses a knot, the p'' it reads changes at the
+rate p''' dt/dc, and a cubic's p''' jumps at every knot: the objective's gradient jumped there, and the
+optimizer parked on whichever crossing the input's rounding picked (131_01, 131_03). A quartic with
+simple knots is C3, so p''' and the gradient are continuous; a sample reads q + 1 = 5 coefficients
+(:attr:`TimingSpline.band`: the Hessian's off-diagonals in c).
 
 Monotonicity is built into the parameters: the optimizer works on ``w``, the control coefficients
-of the derivative, a quadratic B-spline ``p'(t) = kappa * sum_k w_k M_k(t / T)``. Since B-spline
+of the derivative, a B-spline of degree q - 1 ``p'(t) = kappa * sum_k w_k M_k(t / T)``. Since B-spline
 basis functions are non-negative and sum to one, ``w_k >= w_min > 0`` makes the curve strictly
 increasing, with ``p' >= kappa * w_min`` everywhere. The coefficients follow by integration::
 
-    c_0 = 0,   c_k = S * W_k / W,   W_k = sum_{i<k} w_i d_i,   W = W_{n-1},   d_i = (xi_{i+4} - xi_{i+1}) / 3
+    c_0 = 0,   c_k = S * W_k / W,   W_k = sum_{i<k} w_i d_i,   W = W_{n-1},   d_i = (xi_{i+q+1} - xi_{i+1}) / q
 
 so ``p(T) = S`` (the whole source plays) for every ``w``. With a **fixed duration** T the scale of
-``w`` is free (kappa = 3 S / (T W)); with a **free duration** ``T = S / W`` (kappa = 1), so the
+``w`` is free (kappa = q S / (T W)); with a **free duration** ``T = S / W`` (kappa = 1), so the
 optimizer chooses the duration through the same bound-constrained variables.
 
 The *control points* shown to a user are the B-spline's (Greville abscissa, coefficient) pairs:
-``(T (xi_{k+1} + xi_{k+2} + xi_{k+3}) / 3, c_k)``. Adding one inserts a knot (Boehm's algorithm, the
+``(T (xi_{k+1} + ... + xi_{k+q}) / q, c_k)``. Adding one inserts a knot (Boehm's algorithm, the
 curve is unchanged); removing one drops a knot and refits by least squares.
 """
 from __future__ import annotations
@@ -25,10 +32,24 @@ from scipy.interpolate import BSpline
 
 from ...errors import RetimeError
 
+DEGREE = 4  # quartic: C3, so p''' (at which a sample's p'' changes as it crosses a knot) is continuous
+
 
 class TimingSpline:
     """Knots (interior, normalized to (0, 1)), derivative coefficients ``w``, source duration ``S``
     and either a fixed duration ``T`` or ``T=None`` (free)."""
+
+    degree = DEGREE
+
+    @property
+    def band(self) -> int:
+        """Off-diagonals of the objective's Hessian in c: a sample reads c_m .. c_{m + band}."""
+        return self.degree
+
+    @property
+    def support(self) -> int:
+        """Coefficients one sample reads (band + 1)."""
+        return self.degree + 1
 
     def __init__(self, interior_knots, w, source_duration, duration=None, locks=None):
         k = np.asarray(interior_knots, dtype=float).ravel()
@@ -38,8 +59,8 @@ class TimingSpline:
         self.S = float(source_duration)
         self.fixed_T = None if duration is None else float(duration)
         w = np.asarray(w, dtype=float).ravel()
-        if len(w) != len(k) + 3:
-            raise RetimeError(f"a spline with {len(k)} interior knots needs {len(k) + 3} derivative coefficients")
+        if len(w) != len(k) + self.degree:
+            raise RetimeError(f"a spline with {len(k)} interior knots needs {len(k) + self.degree} derivative coefficients")
         self.w = w
         self.locks = dict(locks or {})  # control point index -> source time (exact by construction)
         self._prepare()
@@ -51,18 +72,19 @@ class TimingSpline:
         n_spans = max(1, int(n_spans))
         interior = np.arange(1, n_spans) / n_spans
         T = source_duration if duration is None else duration
-        w = np.full(n_spans + 2, source_duration / T)
+        w = np.full(n_spans - 1 + cls.degree, source_duration / T)
         return cls(interior, w, source_duration, duration)
 
     @classmethod
     def fit(cls, interior_knots, source_duration, duration, func_t, dfunc_t=None, w_min=1e-3):
         """Least-squares fit of p' to a given speed profile (t -> ds/dt), then exact end conditions."""
         k = np.asarray(interior_knots, dtype=float)
-        xi1 = np.r_[0, 0, 0, k, 1, 1, 1]  # quadratic knots of p'
-        tau = np.linspace(0, 1, 20 * (len(k) + 3))
-        D = BSpline.design_matrix(tau, xi1, 2)  # sparse, 3 nonzeros a row
+        q = cls.degree - 1  # of p'
+        xi1 = np.r_[np.zeros(q + 1), k, np.ones(q + 1)]
+        tau = np.linspace(0, 1, 20 * (len(k) + q + 1))
+        D = BSpline.design_matrix(tau, xi1, q)  # sparse, q + 1 nonzeros a row
         y = np.asarray(dfunc_t(tau * duration), dtype=float)
-        w = banded_least_squares(D, y)
+        w = banded_least_squares(D, y, q)
         w = np.maximum(w, w_min)
         return cls(k, w, source_duration, None if duration is None else duration)
 
@@ -70,12 +92,12 @@ class TimingSpline:
         return TimingSpline(self.interior.copy(), self.w.copy(), self.S, self.fixed_T, self.locks)
 
     def _prepare(self):
-        k = self.interior
-        self.xi = np.r_[0.0, 0.0, 0.0, 0.0, k, 1.0, 1.0, 1.0, 1.0]
-        self.n_c = len(k) + 4
-        self.d = (self.xi[4:4 + self.n_c - 1] - self.xi[1:1 + self.n_c - 1]) / 3.0
+        k, q = self.interior, self.degree
+        self.xi = np.r_[np.zeros(q + 1), k, np.ones(q + 1)]
+        self.n_c = len(k) + q + 1
+        self.d = (self.xi[q + 1:q + self.n_c] - self.xi[1:self.n_c]) / q
         self.breaks = np.r_[0.0, k, 1.0]
-        self.span_matrices = _span_matrices(self.xi, self.breaks)
+        self.span_matrices = _span_matrices(self.xi, self.breaks, q)
 
     # -- parameters -> curve -------------------------------------------------------------------
     @property
@@ -125,7 +147,7 @@ class TimingSpline:
 
     # -- evaluation ----------------------------------------------------------------------------
     def _bspline(self, w=None):
-        return BSpline(self.xi, self.coefficients(w), 3, extrapolate=False)
+        return BSpline(self.xi, self.coefficients(w), self.degree, extrapolate=False)
 
     def __call__(self, t, w=None):
         T = self.duration_of(w)
@@ -157,7 +179,8 @@ class TimingSpline:
     def control_points(self, w=None):
         """(output times (Greville abscissae), source times (coefficients))."""
         T = self.duration_of(w)
-        g = (self.xi[1:1 + self.n_c] + self.xi[2:2 + self.n_c] + self.xi[3:3 + self.n_c]) / 3.0
+        q = self.degree
+        g = sum(self.xi[j:j + self.n_c] for j in range(1, q + 1)) / q
         return g * T, self.coefficients(w)
 
     def timing_curve(self, fps, per_frame=4):
@@ -200,7 +223,7 @@ class TimingSpline:
         T = self.duration
         c = self.coefficients()
         xi = self.xi
-        p = 3
+        p = self.degree
         kspan = int(np.searchsorted(xi, tau, side="right") - 1)
         newc = np.empty(len(c) + 1)
         for i in range(len(newc)):
@@ -224,11 +247,12 @@ class TimingSpline:
         old = self.copy()
         self.interior = np.delete(self.interior, index)
         self._prepare()
-        xi1 = self.xi[1:-1]
-        tau = np.linspace(0, 1, 40 * (len(self.interior) + 3))
-        D = BSpline.design_matrix(tau, xi1, 2)  # sparse: a dense one is 40 K^2 doubles for K knots
+        xi1 = self.xi[1:-1]  # the knots of p', degree q - 1
+        q = self.degree - 1
+        tau = np.linspace(0, 1, 40 * (len(self.interior) + q + 1))
+        D = BSpline.design_matrix(tau, xi1, q)  # sparse: a dense one is 40 K^2 doubles for K knots
         y = old.speed(tau * T)
-        self.w = np.maximum(banded_least_squares(D, y), w_min)
+        self.w = np.maximum(banded_least_squares(D, y, q), w_min)
 
 
 def banded_least_squares(D, y, bandwidth=2):
@@ -320,19 +344,19 @@ def _gauge(w, d, idx, val, S, fixed_T):
     return total, g
 
 
-def _span_matrices(xi, breaks):
-    """Per span m: 4x4 matrix G with row r = coefficient of x^r (x = tau - breaks[m]) of the cubic
-    basis functions N_{m+l}, l = 0..3 (columns)."""
+def _span_matrices(xi, breaks, q):
+    """Per span m: (q+1)x(q+1) matrix G with row r = coefficient of x^r (x = tau - breaks[m]) of the
+    degree-q basis functions N_{m+l}, l = 0..q (columns)."""
     n_span = len(breaks) - 1
-    n_c = len(xi) - 4
-    out = np.zeros((n_span, 4, 4))
+    n_c = len(xi) - q - 1
+    out = np.zeros((n_span, q + 1, q + 1))
+    ys = np.linspace(0.1, 0.9, q + 1)
+    V = np.vander(ys, q + 1, increasing=True)  # in y = x / h: well conditioned
     for m in range(n_span):
         a, b = breaks[m], breaks[m + 1]
         h = b - a
-        ys = np.array([0.1, 0.4, 0.6, 0.9])
-        D = BSpline.design_matrix(a + h * ys, xi, 3).toarray()[:, m:m + 4]
-        V = np.vander(ys, 4, increasing=True)  # in y = x / h: well conditioned
-        out[m] = np.linalg.solve(V, D) / (h ** np.arange(4))[:, None]
-        if m + 4 > n_c:
+        D = BSpline.design_matrix(a + h * ys, xi, q).toarray()[:, m:m + q + 1]
+        out[m] = np.linalg.solve(V, D) / (h ** np.arange(q + 1))[:, None]
+        if m + q + 1 > n_c:
             raise RetimeError("internal: spline span outside coefficients")
     return out
