@@ -349,10 +349,11 @@ def _priced_to_go(ahead, level, rho, kmin, kmax, price):
     least cost, its number of steps and its fine positions. Any warp of the segment that is at q
     after p of its M steps, last step kmin + a, costs at least B[q, a] - price (M - p) from there.
 
-    The minimum over the next step reads every (last step, next step) pair, next step by next step,
-    so that the inner loop runs over the last steps without a reduction (the compiler vectorises
-    it): K^2 entries, but faster here than the monotone search's K log K, whose bookkeeping does
-    not vectorise. Each entry is the sum :func:`_first_min` forms, so B is the same to the bit.
+    The minimum over the next step reads every (last step, next step) pair, four next steps at a
+    time, so that the inner loop runs over the last steps without a reduction (the compiler
+    vectorises it): K^2 entries, but faster here than the monotone search's K log K, whose
+    bookkeeping does not vectorise. Each entry is the sum :func:`_first_min` forms and a minimum is
+    exact in any order, so B is the same to the bit.
     No table of choices is kept: the best warp is traced forward afterwards, each step the first
     whose entry equals B (the monotone search's choice)."""
     n_fine = ahead.shape[0] - 1
@@ -361,17 +362,37 @@ def _priced_to_go(ahead, level, rho, kmin, kmax, price):
     B[n_fine, :] = 0.0
     r = np.empty(K)
     rho_by_next = np.ascontiguousarray(rho.T)  # [b, a]: rho[a, b], the change from a to b as _first_min reads it
+    reached = np.empty(K, dtype=np.int64)  # a position's next steps that land on a finite cost
     for q in range(n_fine - kmin, -1, -1):
         if not _priced_row(ahead, B, price, q, kmin, r):
             continue
         lq = level[q]
         best = B[q]
+        n_reach = 0
         for b in range(K):
-            rb = r[b]
-            if rb == INF:
-                continue
-            lb = lq[b]
-            rh = rho_by_next[b]
+            if r[b] < INF:
+                reached[n_reach] = b
+                n_reach += 1
+        i = 0
+        while i + 3 < n_reach:  # four next steps per pass over the last steps: a quarter of the loads and stores of B
+            b1, b2, b3, b4 = reached[i], reached[i + 1], reached[i + 2], reached[i + 3]
+            r1, r2, r3, r4 = r[b1], r[b2], r[b3], r[b4]
+            l1, l2, l3, l4 = lq[b1], lq[b2], lq[b3], lq[b4]
+            h1, h2, h3, h4 = rho_by_next[b1], rho_by_next[b2], rho_by_next[b3], rho_by_next[b4]
+            for a in range(K):
+                la = lq[a]
+                v1 = r1 + h1[a] + abs(la - l1)
+                v2 = r2 + h2[a] + abs(la - l2)
+                v3 = r3 + h3[a] + abs(la - l3)
+                v4 = r4 + h4[a] + abs(la - l4)
+                v1 = v1 if v1 < v2 else v2
+                v3 = v3 if v3 < v4 else v4
+                v1 = v1 if v1 < v3 else v3
+                best[a] = v1 if v1 < best[a] else best[a]
+            i += 4
+        for j in range(i, n_reach):
+            b = reached[j]
+            rb, lb, rh = r[b], lq[b], rho_by_next[b]
             for a in range(K):
                 v = rb + rh[a] + abs(lq[a] - lb)
                 best[a] = v if v < best[a] else best[a]
