@@ -416,6 +416,32 @@ def test_deepening_search_finds_the_twins_optimum(jump, case):
         assert np.array_equal(q, q_np)
 
 
+@pytest.mark.parametrize("case", ["jump 0.6", "jump 1.5", "random 0", "random 1"])
+def test_priced_relaxation_matches_its_numpy_twin(jump, case):
+    """The compiled relaxation (every pair of steps, vectorised, the warp traced afterwards) against
+    its plain twin: the same bounds to the bit, least cost, step count and warp, at prices either
+    side of the segment's own."""
+    from retime.guided import steady as st
+
+    if case.startswith("jump"):
+        args = _real_segment(jump, float(case.split()[1]))
+    else:
+        t = _tiny_segment(np.random.default_rng(300 + int(case.split()[1])), n=40, s=5, M=14)
+        args = (*t["tables"], t["lo"], t["hi"], t["kmin"], t["kmax"])
+    cost_into, level, rho, lo, hi, kmin, kmax = args
+    ahead = st._steps_ahead(cost_into, kmin, kmax)
+    typical = float(np.median(cost_into[np.isfinite(cost_into)]))
+    counts = set()
+    for price in (-5.0 * typical, -0.5 * typical, 0.0, 0.3 * typical, 2.0 * typical, 10.0 * typical):
+        B, total, count, path = st._priced_to_go(ahead, level, rho, kmin, kmax, price)
+        B_np, total_np, count_np, path_np = st.priced_to_go_numpy(cost_into, level, rho, kmin, kmax, price)
+        assert np.array_equal(B, B_np)
+        assert total == total_np and count == count_np
+        assert np.array_equal(path, path_np)
+        counts.add(count)
+    assert len(counts) > 1  # the prices move the warp
+
+
 @pytest.mark.parametrize("price", [-1.0, 0.0, 0.7])
 def test_priced_bound_is_below_every_continuation(price):
     """The pruning's bound: from every state (q, last step) of a tiny segment, every continuation
@@ -428,7 +454,7 @@ def test_priced_bound_is_below_every_continuation(price):
     t = _tiny_segment(np.random.default_rng(7))
     cost_into, level, rho = t["tables"]
     kmin, kmax, end, h = t["kmin"], t["kmax"], t["M"] * t["fine"], t["h"]
-    B, total, count, path = st._priced_to_go(cost_into, level, rho, kmin, kmax, price)
+    B, total, count, path = st._priced_to_go(st._steps_ahead(cost_into, kmin, kmax), level, rho, kmin, kmax, price)
     assert _objective_from_definition(t["D"], t["S"], path * h, t["lam"]) + price * count == pytest.approx(total)
     assert path[0] == 0 and path[-1] == end and len(path) == count + 1
     for q in range(end):

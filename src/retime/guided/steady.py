@@ -312,60 +312,109 @@ def _monotone_min(row, rho, level, b0, b1, val, arg, stack):
 
 
 @njit(cache=True)
-def _priced_to_go(cost_into, level, rho, kmin, kmax, price):
+def _steps_ahead(cost_into, kmin, kmax):
+    """(n_fine + 1, K) ``cost_into`` by where a step starts: [q, b] is the score of the step of
+    kmin + b fine points from q (inf past the end). The relaxations read a position's every step
+    from one row of it, where ``cost_into`` holds them on a diagonal (one memory line each)."""
+    n_fine = cost_into.shape[0] - 1
+    K = kmax - kmin + 1
+    ahead = np.full((n_fine + 1, K), INF)
+    for q in range(n_fine + 1):
+        for b in range(min(K, n_fine - q - kmin + 1)):
+            ahead[q, b] = cost_into[q + kmin + b, b]
+    return ahead
+
+
+@njit(cache=True, inline="always")
+def _priced_row(ahead, B, price, q, kmin, r):
+    """r[b]: the relaxation's cost of the step of kmin + b fine points from q and the best from
+    where it lands (inf past the end). Returns whether any is finite."""
+    n_fine = ahead.shape[0] - 1
+    reach = False
+    for b in range(r.shape[0]):
+        qn = q + kmin + b
+        r[b] = ahead[q, b] + price + B[qn, b] if qn <= n_fine else INF
+        reach = reach or r[b] < INF
+    return reach
+
+
+@njit(cache=True)
+def _priced_to_go(ahead, level, rho, kmin, kmax, price):
     """The segment's warps with any number of steps, each step charged ``price`` more (a Lagrangian
-    relaxation of the step count; the band is implied by the count, so it goes too).
+    relaxation of the step count; the band is implied by the count, so it goes too). ahead:
+    :func:`_steps_ahead`.
 
     Returns B (n_fine + 1, K): B[q, a] the least such cost from fine position q, where a step of
     kmin + a ended, to the end; and from the start (whose first step has no change to pay) the
     least cost, its number of steps and its fine positions. Any warp of the segment that is at q
-    after p of its M steps, last step kmin + a, costs at least B[q, a] - price (M - p) from there."""
-    n_fine = cost_into.shape[0] - 1
+    after p of its M steps, last step kmin + a, costs at least B[q, a] - price (M - p) from there.
+
+    The minimum over the next step reads every (last step, next step) pair, four next steps at a
+    time, so that the inner loop runs over the last steps without a reduction (the compiler
+    vectorises it): K^2 entries, but faster here than the monotone search's K log K, whose
+    bookkeeping does not vectorise. Each entry is the sum :func:`_first_min` forms and a minimum is
+    exact in any order, so B is the same to the bit.
+    No table of choices is kept: the best warp is traced forward afterwards, each step the first
+    whose entry equals B (the monotone search's choice)."""
+    n_fine = ahead.shape[0] - 1
     K = kmax - kmin + 1
     B = np.full((n_fine + 1, K), INF)
-    steps = np.zeros((n_fine + 1, K), dtype=np.int64)
-    nxt = np.full((n_fine + 1, K), -1, dtype=np.int64)
     B[n_fine, :] = 0.0
     r = np.empty(K)
-    val = np.empty(K)
-    arg = np.empty(K, dtype=np.int64)
-    stack = np.empty((2 * K + 2, 4), dtype=np.int64)
+    rho_by_next = np.ascontiguousarray(rho.T)  # [b, a]: rho[a, b], the change from a to b as _first_min reads it
+    reached = np.empty(K, dtype=np.int64)  # a position's next steps that land on a finite cost
     for q in range(n_fine - kmin, -1, -1):
-        reach = False
-        for b in range(K):
-            qn = q + kmin + b
-            r[b] = cost_into[qn, b] + price + B[qn, b] if qn <= n_fine else INF
-            reach = reach or r[b] < INF
-        if not reach:
+        if not _priced_row(ahead, B, price, q, kmin, r):
             continue
-        _monotone_min(r, rho, level[q], 0, K - 1, val, arg, stack)  # the penalties are symmetric in a, b
-        for a in range(K):
-            if arg[a] >= 0:
-                B[q, a] = val[a]
-                nxt[q, a] = arg[a]
-                steps[q, a] = 1 + steps[q + kmin + arg[a], arg[a]]
+        lq = level[q]
+        best = B[q]
+        n_reach = 0
+        for b in range(K):
+            if r[b] < INF:
+                reached[n_reach] = b
+                n_reach += 1
+        i = 0
+        while i + 3 < n_reach:  # four next steps per pass over the last steps: a quarter of the loads and stores of B
+            b1, b2, b3, b4 = reached[i], reached[i + 1], reached[i + 2], reached[i + 3]
+            r1, r2, r3, r4 = r[b1], r[b2], r[b3], r[b4]
+            l1, l2, l3, l4 = lq[b1], lq[b2], lq[b3], lq[b4]
+            h1, h2, h3, h4 = rho_by_next[b1], rho_by_next[b2], rho_by_next[b3], rho_by_next[b4]
+            for a in range(K):
+                la = lq[a]
+                v1 = r1 + h1[a] + abs(la - l1)
+                v2 = r2 + h2[a] + abs(la - l2)
+                v3 = r3 + h3[a] + abs(la - l3)
+                v4 = r4 + h4[a] + abs(la - l4)
+                v1 = v1 if v1 < v2 else v2
+                v3 = v3 if v3 < v4 else v4
+                v1 = v1 if v1 < v3 else v3
+                best[a] = v1 if v1 < best[a] else best[a]
+            i += 4
+        for j in range(i, n_reach):
+            b = reached[j]
+            rb, lb, rh = r[b], lq[b], rho_by_next[b]
+            for a in range(K):
+                v = rb + rh[a] + abs(lq[a] - lb)
+                best[a] = v if v < best[a] else best[a]
     total = INF
     first = -1
     for b in range(K):
         if kmin + b <= n_fine:
-            v = cost_into[kmin + b, b] + price + B[kmin + b, b]
+            v = ahead[0, b] + price + B[kmin + b, b]
             if v < total:
                 total = v
                 first = b
     if first < 0:
         return B, total, 0, np.zeros(1, dtype=np.int64)
-    count = 1 + steps[kmin + first, first]
-    path = np.empty(count + 1, dtype=np.int64)
-    path[0] = 0
+    path = [0, kmin + first]
     q = kmin + first
-    b = first
-    for i in range(1, count + 1):
-        path[i] = q
-        if i < count:
-            b2 = nxt[q, b]
-            q = q + kmin + b2
-            b = b2
-    return B, total, count, path
+    a = first
+    while q < n_fine:
+        _priced_row(ahead, B, price, q, kmin, r)
+        _, a = _first_min(r, rho, level[q], a, 0, K - 1)
+        q += kmin + a
+        path.append(q)
+    return B, total, len(path) - 1, np.array(path, dtype=np.int64)
 
 
 @njit(cache=True, inline="always")
@@ -563,11 +612,46 @@ def segment_dp_numpy(cost_into, level, rho, lo, hi, kmin, kmax):
     return np.array(out[::-1]), obj
 
 
+def priced_to_go_numpy(cost_into, level, rho, kmin, kmax, price):
+    """:func:`_priced_to_go`'s plain NumPy twin (from ``cost_into`` itself, each position's (last
+    step, next step) pairs as one array, the first minimiser by argmin). For the parity tests."""
+    n_fine = cost_into.shape[0] - 1
+    K = kmax - kmin + 1
+    B = np.full((n_fine + 1, K), np.inf)
+    B[n_fine] = 0.0
+    nxt = np.zeros((n_fine + 1, K), dtype=np.int64)
+    b = np.arange(K)
+
+    def row(q):  # the cost of each next step from q and the best from where it lands
+        qn = q + kmin + b
+        inside = qn <= n_fine
+        r = np.full(K, np.inf)
+        r[inside] = cost_into[qn[inside], b[inside]] + price + B[qn[inside], b[inside]]
+        return r
+
+    for q in range(n_fine - kmin, -1, -1):
+        r = row(q)
+        if not np.isfinite(r).any():
+            continue
+        total = r[None, :] + rho + np.abs(level[q][:, None] - level[q][None, :])  # [last a, next b]
+        nxt[q] = np.argmin(total, axis=1)
+        B[q] = total[b, nxt[q]]
+    start = row(0)
+    first = int(np.argmin(start))
+    if not np.isfinite(start[first]):
+        return B, np.inf, 0, np.zeros(1, dtype=np.int64)
+    path, a = [0, kmin + first], first
+    while path[-1] < n_fine:
+        a = int(nxt[path[-1], a])
+        path.append(path[-1] + kmin + a)
+    return B, float(start[first]), len(path) - 1, np.array(path)
+
+
 @njit(cache=True)
-def _priced_scores(cost_into, kmin, kmax, price):
+def _priced_scores(ahead, kmin, kmax, price):
     """(least cost, its number of steps) of :func:`_priced_to_go`'s relaxation without the change
     penalties: K times cheaper, and its best price is near that of the whole relaxation."""
-    n_fine = cost_into.shape[0] - 1
+    n_fine = ahead.shape[0] - 1
     K = kmax - kmin + 1
     B = np.full(n_fine + 1, INF)
     steps = np.zeros(n_fine + 1, dtype=np.int64)
@@ -575,7 +659,7 @@ def _priced_scores(cost_into, kmin, kmax, price):
     for q in range(n_fine - kmin, -1, -1):
         for b in range(min(K, n_fine - q - kmin + 1)):
             qn = q + kmin + b
-            v = cost_into[qn, b] + price + B[qn]
+            v = ahead[q, b] + price + B[qn]
             if v < B[q]:
                 B[q] = v
                 steps[q] = steps[qn] + 1
@@ -678,9 +762,10 @@ def step_price(cost_into, level, rho, kmin, kmax, M, relaxations=RELAXATIONS, to
     width = 4.0 * float(np.median(finite)) + 1e-6 if finite.size else 1.0
     top = 4.0 * float(finite.max()) + 1.0 if finite.size else 1.0
     scale = 0.25 * width * M  # about the objective of M steps at the median score
+    ahead = _steps_ahead(cost_into, kmin, kmax)
 
     def scores_count(price):
-        total, count = _priced_scores(cost_into, kmin, kmax, price)
+        total, count = _priced_scores(ahead, kmin, kmax, price)
         return int(count) if np.isfinite(total) else None
 
     lo, hi = _bisect_price(scores_count, M, -width, width, top, SCORE_PRICE_ITERATIONS)
@@ -691,7 +776,7 @@ def step_price(cost_into, level, rho, kmin, kmax, M, relaxations=RELAXATIONS, to
     slope = (fewer - more) / spread if fewer is not None and more is not None and fewer < more else -M / spread
     best, history, bounds, bracketed_at = None, [], {}, None
     while True:
-        B, total, count, path = _priced_to_go(cost_into, level, rho, kmin, kmax, price)
+        B, total, count, path = _priced_to_go(ahead, level, rho, kmin, kmax, price)
         if not np.isfinite(total):
             break  # no warp at all (whatever the price)
         dual = total - price * M
