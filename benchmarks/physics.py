@@ -15,7 +15,7 @@ Cases: CMU 16_16 (walk, 510 frames, 90 DOFs, two feet) and chains of 10, 100, 10
 
 Also printed: re-convergence of an interactive session (16_16 at half duration, converged, then one
 control point moved by 20% of its neighbours' span and locked): the editor's answer during a drag
-(``reconverge(quick=True)``, the first stage of the session's method, L-BFGS at tol 1e-5), median over
+(``reconverge(quick=True)``, the first stage of the session's method, L-BFGS at optimize.QUICK_TOL), median over
 5 moves, in ms; then the session's method to convergence (L-BFGS and the Newton polish) from there.
 
 Targets (issue 4, this 2-core machine): Force + Feasible + Bake <= 1 ms per frame for 16_16; Obj <= 0.2
