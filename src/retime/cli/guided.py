@@ -63,6 +63,10 @@ def register(sub):
     p.add_argument("--steadiness", type=nonnegative_float, metavar="L",
                    help=f"steady score: weight of the speed-change penalty (default {d.steadiness:g}; lower keeps short "
                         "flights at their speed, higher plays more evenly)")
+    p.add_argument("--pace", type=nonnegative_float, metavar="P",
+                   help=f"steady score: pull of every step to one steady speed, and of a jump's flight to its natural "
+                        f"speed, in units of the speed-change penalty (default {d.pace:g}; 0 keeps the reference's "
+                        "changes of pace, as a walk slowing in a turn)")
     p.add_argument("--blend", type=unit_float, metavar="W",
                    help="the reference's influence from 0 (the keytime spline warp, as linear --smooth) to 1 "
                         f"(the guided warp; default {d.blend:g})")
@@ -94,7 +98,7 @@ def run(args):
         check_found_inputs(args, reference)
     from ..guided import adaptive_smooth
 
-    options = ("max_skip", "neighbors", "analysis_fps", "weights", "upsample", "smoothing", "score", "steadiness", "blend")
+    options = ("max_skip", "neighbors", "analysis_fps", "weights", "upsample", "smoothing", "score", "steadiness", "pace", "blend")
     given = {k: getattr(args, k) for k in options if getattr(args, k) is not None}
     if args.approx is not None:
         given.update(knn="approx", eps=args.approx)
