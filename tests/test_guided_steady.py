@@ -113,6 +113,8 @@ def test_blend_and_score_errors(jump):
         guided_solve(jump, scale=0.6, blend=1.5)
     with pytest.raises(RetimeError, match="unknown score"):
         guided_solve(jump, scale=0.6, score="fancy")
+    with pytest.raises(RetimeError, match="pace weight"):
+        guided_solve(jump, scale=0.6, pace=-1.0)
 
 
 def test_natural_and_mean_speed_both_on_the_fine_grid():
@@ -213,9 +215,10 @@ def test_front_ends_leave_the_defaults_to_settings():
 
     guided = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices["guided"]
     options = {a.dest: a for a in guided._actions}
-    assert all(options[name].default is None for name in ("score", "steadiness", "blend"))
+    assert all(options[name].default is None for name in ("score", "steadiness", "pace", "blend"))
     assert tuple(options["score"].choices) == SCORES and f"{Settings.score} (default" in options["score"].help
     assert f"default {Settings.steadiness:g}" in options["steadiness"].help
+    assert f"default {Settings.pace:g}" in options["pace"].help
     param, = [p for p in GuidedMethod.params if p.name == "blend"]
     assert param.default == Settings.blend == 1.0 and "default" in options["blend"].help
 

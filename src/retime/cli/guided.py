@@ -18,8 +18,8 @@ def register(sub):
         description=(
             "Guided time warping: the warp through the keytimes whose local velocities and accelerations "
             "best match a reference motion, found exactly by dynamic programming. The default reference is the "
-            "input itself, which keeps its natural timing: jumps keep their flight speed while idle stretches "
-            "are sped through (or slowed down when lengthening)."),
+            "input itself: a jump's flight keeps its natural speed while the rest plays at one steady speed "
+            "(with --pace 0, or --score paper, idle stretches are sped through, or slowed down when lengthening)."),
         epilog=(
             "examples:\n"
             "  retime guided 16_06.amc -o short.bvh --scale 0.6 --warp short.csv\n"
