@@ -19,7 +19,7 @@ from retime.physics.method import Settings as PhysicsSettings
 
 # command-line option -> Settings field, for every option that carries one of a Settings' values
 GUIDED_OPTIONS = {"max_skip": "max_skip", "neighbors": "neighbors", "analysis_fps": "analysis_fps",
-                  "smoothing": "smoothing", "score": "score", "steadiness": "steadiness", "blend": "blend",
+                  "smoothing": "smoothing", "score": "score", "steadiness": "steadiness", "pace": "pace", "blend": "blend",
                   "weights": "weights", "upsample": "upsample", "fast": "fast"}
 PHYSICS_OPTIONS = {"objective": "objective", "torque_scale": "torque_scale", "optimizer": "optimizer",
                    "start": "start", "friction": "friction", "gravity": "gravity", "gravity_scale": "gravity_scale"}

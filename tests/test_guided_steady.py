@@ -113,6 +113,8 @@ def test_blend_and_score_errors(jump):
         guided_solve(jump, scale=0.6, blend=1.5)
     with pytest.raises(RetimeError, match="unknown score"):
         guided_solve(jump, scale=0.6, score="fancy")
+    with pytest.raises(RetimeError, match="pace weight"):
+        guided_solve(jump, scale=0.6, pace=-1.0)
 
 
 def test_natural_and_mean_speed_both_on_the_fine_grid():
@@ -213,9 +215,10 @@ def test_front_ends_leave_the_defaults_to_settings():
 
     guided = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices["guided"]
     options = {a.dest: a for a in guided._actions}
-    assert all(options[name].default is None for name in ("score", "steadiness", "blend"))
+    assert all(options[name].default is None for name in ("score", "steadiness", "pace", "blend"))
     assert tuple(options["score"].choices) == SCORES and f"{Settings.score} (default" in options["score"].help
     assert f"default {Settings.steadiness:g}" in options["steadiness"].help
+    assert f"default {Settings.pace:g}" in options["pace"].help
     param, = [p for p in GuidedMethod.params if p.name == "blend"]
     assert param.default == Settings.blend == 1.0 and "default" in options["blend"].help
 
@@ -470,3 +473,95 @@ def test_priced_bound_is_below_every_continuation(price):
                     # the continuation's cost: the whole path's less its first step's score
                     rest = _objective_from_definition(t["D"], t["S"], x, t["lam"]) - cost_into[q, a]
                     assert rest >= B[q, a] - price * r - 1e-9
+
+
+def paced_walk(base: Motion, fps=30.0, seconds=6.0, hz=1.1, turn=False):
+    """A sine "walk" at ``fps`` that starts and ends standing (0.8 s still, 0.6 s ramps) or, with
+    ``turn``, walks throughout and slows to 40% of its pace for 1.5 s mid-clip: the limbs' phase and
+    the root advance with the pace, so the standing (or slow) parts move little, and the paper's score
+    would play them faster."""
+    t = np.arange(int(seconds * fps)) / fps
+    if turn:
+        pace = 1.0 - 0.6 * np.clip(np.minimum(t - 1.8, 4.2 - t) / 0.5, 0.0, 1.0)
+    else:
+        pace = np.clip(np.minimum(t - 0.8, seconds - 0.8 - t) / 0.6, 0.0, 1.0)
+    travelled = np.concatenate([[0.0], np.cumsum(0.5 * (pace[1:] + pace[:-1]) / fps)])
+    J = base.skeleton.n_joints
+    amp = np.linspace(0.2, 0.6, J) * pace[:, None]
+    theta = amp * np.sin(2 * np.pi * hz * travelled[:, None] + np.linspace(0.0, 2 * np.pi, J, endpoint=False))
+    rot = np.zeros((len(t), J, 4))
+    rot[..., 0] = np.sin(theta / 2)
+    rot[..., 3] = np.cos(theta / 2)
+    tr = np.repeat(base.translations[:1], len(t), axis=0).copy()
+    tr[:, 0, 0] = base.translations[0, 0, 0] + 20.0 * travelled
+    tr[:, 0, 1] = base.translations[0, 0, 1] + 0.5 * pace * np.sin(4 * np.pi * hz * travelled)
+    return Motion(base.skeleton, rot, tr, fps)
+
+
+def _middle_spread(motion, scale, **options):
+    v = step_speeds(guided_solve(motion, scale=scale, **options).curve, motion.fps)
+    cut = len(v) // 20
+    mid = v[cut:len(v) - cut]
+    return mid.std() / mid.mean(), mid.max() / mid.min(), np.median(mid)
+
+
+@pytest.mark.parametrize("scale", [0.6, 1.5])
+@pytest.mark.parametrize("turn", [False, True], ids=["standing-ends", "slows-in-a-turn"])
+def test_a_walk_whose_pace_changes_plays_at_one_speed(walk, scale, turn):
+    """Issue 23: an animator who speeds a walk up expects it uniformly faster, its standing or slow
+    parts included (the reference's own score would squeeze them: checked with the pull off)."""
+    motion = paced_walk(walk, turn=turn)
+    cv, ratio, median = _middle_spread(motion, scale)
+    assert cv <= 0.05 and ratio <= 1.3
+    assert median == pytest.approx(1 / scale, rel=0.05)
+    assert _middle_spread(motion, scale, pace=0.0)[0] > 0.05  # the defect the pull removes
+
+
+@pytest.mark.parametrize("variant", ["float32", "cm", "z-up", "dummy-root"])
+def test_the_steady_pace_survives_rounding_units_and_axes(walk, variant):
+    """The same walk rounded to float32, in centimetres, Z-up or under a studio's dummy root plays the same."""
+    from retime.motion import variants as V
+
+    motion = paced_walk(walk)
+    if variant == "float32":
+        changed = Motion(motion.skeleton, motion.rotations.astype(np.float32).astype(float),
+                         motion.translations.astype(np.float32).astype(float), motion.fps)
+    elif variant == "cm":
+        changed = V.rescale(motion, 100.0)
+    elif variant == "z-up":
+        changed = V.turn_up(motion, "+z")
+    else:
+        changed = V.add_dummy_root(motion)
+    for scale in (0.6, 1.5):
+        assert _middle_spread(changed, scale)[:2] == pytest.approx(_middle_spread(motion, scale)[:2], abs=0.01)
+
+
+@pytest.mark.parametrize("scale", [0.6, 1.5])
+def test_a_jump_flight_keeps_its_natural_speed_under_the_pull(jump, scale):
+    from retime.physics.model.contacts import foot_contacts
+    from retime.phases import longest_flight
+
+    a, b = longest_flight(foot_contacts(jump), np.arange(jump.n_frames) / jump.fps)
+    assert interval_speed(guided_solve(jump, scale=scale).curve, a, b) == pytest.approx(1.0, abs=0.05)
+
+
+def test_the_ground_target_leaves_room_for_the_flight():
+    """pace_penalties: with no flight the pull is to the mean step; with one, the ground's steady step
+    times the ground's output steps plus the flight at its natural step spans the segment."""
+    from retime.guided.steady import pace_penalties
+
+    n_fine, fine, kmin, kmax = 400, 10, 4, 40
+    h = 0.2  # grid frames per fine point: natural (1 grid frame) is 5 fine points
+    ground = pace_penalties(np.ones(100), 0.0, h, n_fine, kmin, kmax, fine, 1.0, 1.0)
+    k = np.arange(kmin, kmax + 1)
+    assert np.all(k[np.argmin(ground, axis=1)] == fine)
+    grounded = np.ones(100)
+    grounded[40:60] = 0.0
+    pulls = pace_penalties(grounded, 0.0, h, n_fine, kmin, kmax, fine, 1.0, 1.0)
+    q = np.arange(n_fine + 1)
+    on = np.interp(q * h, np.arange(100), grounded)
+    flying = np.sum(1.0 - on[1:])
+    steady = (n_fine - flying) / (n_fine / fine - flying * h / 1.0)
+    assert pulls[10] == pytest.approx((np.log(k) - np.log(steady)) ** 2)
+    assert pulls[250] == pytest.approx((np.log(k) - np.log(5.0)) ** 2)
+    assert steady * (n_fine / fine - flying * h) + flying == pytest.approx(n_fine)

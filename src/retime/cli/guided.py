@@ -18,8 +18,8 @@ def register(sub):
         description=(
             "Guided time warping: the warp through the keytimes whose local velocities and accelerations "
             "best match a reference motion, found exactly by dynamic programming. The default reference is the "
-            "input itself, which keeps its natural timing: jumps keep their flight speed while idle stretches "
-            "are sped through (or slowed down when lengthening)."),
+            "input itself: a jump's flight keeps its natural speed while the rest plays at one steady speed "
+            "(with --pace 0, or --score paper, idle stretches are sped through, or slowed down when lengthening)."),
         epilog=(
             "examples:\n"
             "  retime guided 16_06.amc -o short.bvh --scale 0.6 --warp short.csv\n"
@@ -63,6 +63,10 @@ def register(sub):
     p.add_argument("--steadiness", type=nonnegative_float, metavar="L",
                    help=f"steady score: weight of the speed-change penalty (default {d.steadiness:g}; lower keeps short "
                         "flights at their speed, higher plays more evenly)")
+    p.add_argument("--pace", type=nonnegative_float, metavar="P",
+                   help=f"steady score: pull of every step to one steady speed, and of a jump's flight to its natural "
+                        f"speed, in units of the speed-change penalty (default {d.pace:g}; 0 keeps the reference's "
+                        "changes of pace, as a walk slowing in a turn)")
     p.add_argument("--blend", type=unit_float, metavar="W",
                    help="the reference's influence from 0 (the keytime spline warp, as linear --smooth) to 1 "
                         f"(the guided warp; default {d.blend:g})")
@@ -94,7 +98,7 @@ def run(args):
         check_found_inputs(args, reference)
     from ..guided import adaptive_smooth
 
-    options = ("max_skip", "neighbors", "analysis_fps", "weights", "upsample", "smoothing", "score", "steadiness", "blend")
+    options = ("max_skip", "neighbors", "analysis_fps", "weights", "upsample", "smoothing", "score", "steadiness", "pace", "blend")
     given = {k: getattr(args, k) for k in options if getattr(args, k) is not None}
     if args.approx is not None:
         given.update(knn="approx", eps=args.approx)

@@ -41,6 +41,7 @@ class Settings:
     progress: bool = False  # stage messages and the compile notice on stderr
     score: str = "steady"  # or "paper": the paper's mean distances on whole grid frames
     steadiness: float = 3.0  # weight of the steady score's speed-change penalty
+    pace: float = 10.0  # steady score: pull to one steady speed (a jump's flight: its natural one), x the change penalty's weight; 0 = off
     blend: float = 1.0  # the reference's influence: 0 = the keytime spline warp, 1 = the guided warp
 
     def __post_init__(self):
@@ -52,6 +53,8 @@ class Settings:
             raise RetimeError(f"--blend must be between 0 and 1, got {self.blend:g}")
         if not (float(self.steadiness) >= 0 and math.isfinite(self.steadiness)):
             raise RetimeError(f"the steadiness must be a finite number >= 0, got {self.steadiness:g}")
+        if not (float(self.pace) >= 0 and math.isfinite(self.pace)):
+            raise RetimeError(f"the pace weight must be a finite number >= 0, got {self.pace:g}")
         if not 1 <= int(self.max_skip) <= MAX_SKIP_LIMIT:
             raise RetimeError(f"--max-skip must be between 1 and {MAX_SKIP_LIMIT}, got {self.max_skip}")
         if int(self.neighbors) < 1:

@@ -13,6 +13,7 @@ average speed, and a step of ``k`` points plays ``k / L`` times the segment's me
 warp minimises::
 
     sum_p  c(t_p, v_p)  +  |A(t_p, v_p) - A(t_p, v_{p-1})|  +  lam rho(log v_p - log v_{p-1})
+           +  pace lam (log v_p - log v*(t_p))^2
 
 with ``rho(x) = |x| + x^2``, over every step, the first and the last included (the ends are warped
 like any other frame). ``c(t, v)`` is the paper's local score of playing around grid time ``t`` at
@@ -24,7 +25,9 @@ body moves fast, low where it stands still; a change is priced at every speed it
 ``rho`` is strictly convex, so of two warps with the same scores the
 steadier wins (a walk plays uniformly), and it charges a change the same sudden or spread out: a
 short excursion (a run's 0.1 s flight) is not worth its two changes, a long one (a jump's flight)
-is. ``lam`` is ``steadiness`` times the median score of the segment's frames played uniformly: the
+is. The last term (:func:`pace_penalties`, in the step table) pulls every step to one steady speed
+v*, or in a jump's flight to its natural speed: c alone would play what barely moves (standing, a
+slow turn) faster, so a walk whose pace changes would play in blocks. ``lam`` is ``steadiness`` times the median score of the segment's frames played uniformly: the
 penalty is measured against what the reference objects to in the uniform warp, independent of the
 feature scale and of the clip.
 
@@ -852,9 +855,29 @@ def bounded_search(cost_into, level, rho, lo, hi, kmin, kmax, to_go, prices, dua
     return solve(known)
 
 
-def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passes=8):
+def pace_penalties(grounded, a0, h, n_fine, kmin, kmax, fine, natural, weight):
+    """(n_fine + 1, K) ``weight`` (log(k / k*))^2 for the step of k fine points that ends at q: a
+    strictly convex pull towards one steady step k* where grid time a0 + q h is on the ground
+    (``grounded``, per grid frame, linear between frames), towards the natural speed (k* = ``natural``
+    / h) in a flight. The ground's k* is what is left once the flights play at their natural speed
+    (the segment's mean step ``fine`` if it has none), so a flight costs the ground nothing. A walk
+    plays at one speed even where its own pace changes (the reference's score would play its
+    standing and turning faster); a jump's flight keeps its speed."""
+    k = np.arange(kmin, kmax + 1, dtype=float)
+    t = np.clip(a0 + np.arange(n_fine + 1) * h, 0.0, len(grounded) - 1.0)
+    on_ground = np.interp(t, np.arange(len(grounded)), np.asarray(grounded, dtype=float))
+    flying = float(np.sum(1.0 - on_ground[1:]))  # fine points in flight
+    ground_steps = n_fine / fine - flying * h / natural
+    steady = (n_fine - flying) / ground_steps if ground_steps > 0 else float(kmax)
+    steady = min(max(steady, float(kmin)), float(kmax))
+    target = on_ground * math.log(steady) + (1.0 - on_ground) * math.log(natural / h)
+    return weight * (np.log(k)[None, :] - target[:, None]) ** 2
+
+
+def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, grounded=None, pace=0.0, max_passes=8):
     """The steady warp of one segment (grid frames a0 -> a1 over len(y) - 1 steps) near path y:
-    (fractional grid frames, objective)."""
+    (fractional grid frames, objective). ``grounded`` (per grid frame, or None: all) and ``pace``: the
+    pull of grounded steps to the mean speed, in units of lam (:func:`pace_penalties`)."""
     M = len(y) - 1
     N = a1 - a0
     fine = points_per_step(N, M, natural, s)
@@ -870,6 +893,9 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
     lo, hi = _fine_band(lb, ub, kmin, kmax)
     K = kmax - kmin + 1
     cost_into, level = _step_tables(D, S, float(a0), h, M * fine, kmin, kmax)
+    if pace > 0:
+        cost_into += pace_penalties(np.ones(D.shape[0]) if grounded is None else grounded, a0, h, M * fine,
+                                    kmin, kmax, fine, natural, float(pace) * lam)
     rho = change_penalties(kmin, kmax, float(lam))
 
     wide = int((hi - lo + 1).max()) * K * K > FULL_BAND_STATES
@@ -916,7 +942,7 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, max_passe
 
 
 def steady_warp(F, frames, fixed_positions, steadiness: float, natural=1.0,
-                corridor: int = CORRIDOR) -> SteadyWarp:
+                corridor: int = CORRIDOR, grounded=None, pace: float = 0.0) -> SteadyWarp:
     """The steady warp near the discrete warp ``frames`` (grid frames at the output frames).
 
     F: the score table; fixed_positions: output positions that keep their grid
@@ -932,7 +958,7 @@ def steady_warp(F, frames, fixed_positions, steadiness: float, natural=1.0,
     total, kept = 0.0, 0
     for p0, p1 in zip(cuts, cuts[1:]):
         part, obj = _refine_segment(D, S, frames[p0:p1 + 1], int(frames[p0]), int(frames[p1]), F.shape[1], steadiness,
-                                    float(natural[p0]), int(corridor))
+                                    float(natural[p0]), int(corridor), grounded, float(pace))
         if part is None:  # the whole-frame warp stands for this segment (said by the caller)
             part, obj, kept = frames[p0:p1 + 1].astype(float), 0.0, kept + 1
         out[p0:p1 + 1] = part
