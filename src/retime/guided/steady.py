@@ -91,18 +91,20 @@ class SteadyWarp:
 
 
 def _fill_gaps(D):
-    """Each column's inf entries (triples off the clip, or not scored) from the nearest finite row."""
+    """Each column's inf entries (triples off the clip, or not scored) from the nearest finite row
+    (the earlier of two as near; a column with no finite entry is left as it is). All columns at once."""
     n = D.shape[0]
-    rows = np.arange(n)
-    for c in range(D.shape[1]):
-        col = D[:, c]
-        ok = np.isfinite(col)
-        if ok.any() and not ok.all():
-            idx = np.flatnonzero(ok)
-            at = np.searchsorted(idx, rows)
-            after = idx[np.clip(at, 0, len(idx) - 1)]
-            before = idx[np.clip(at - 1, 0, len(idx) - 1)]
-            D[:, c] = col[np.where(np.abs(before - rows) <= np.abs(after - rows), before, after)]
+    ok = np.isfinite(D)
+    if ok.all():
+        return D
+    rows = np.arange(n)[:, None]
+    before = np.maximum.accumulate(np.where(ok, rows, -1), axis=0)  # the last finite row at or above
+    after = np.minimum.accumulate(np.where(ok, rows, n)[::-1], axis=0)[::-1]  # the first at or below
+    use_before = (after == n) | ((before >= 0) & (rows - before <= after - rows))
+    source = np.where(use_before, before, after)
+    filled = ok.any(axis=0)
+    cols = np.arange(D.shape[1])[None, :]
+    D[:, filled] = D[np.clip(source, 0, n - 1), np.broadcast_to(cols, D.shape)][:, filled]
     return D
 
 
