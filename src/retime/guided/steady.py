@@ -220,10 +220,16 @@ def _step_tables(D, S, a0, h, n_fine, kmin, kmax):
     # c = D at the step's middle and speed, as _bilinear reads it (the speed's columns once per step)
     col0 = np.empty(K, dtype=np.int64)
     col_w = np.empty(K)
+    # and A's whole speed at or below the step's speed (at most the last) and the fraction beyond it
+    whole = np.empty(K, dtype=np.int64)
+    beyond = np.empty(K)
     for b in range(K):
         v = min(max((kmin + b) * h, 1.0), float(s))
         col0[b] = min(int(v) - 1, s - 2) if s > 1 else 0
         col_w[b] = v - 1.0 - col0[b] if s > 1 else 0.0
+        v = max((kmin + b) * h, 1.0)
+        whole[b] = min(int(v), s)
+        beyond[b] = v - whole[b]
     for q in range(n_fine + 1):
         t = min(max(a0 + q * h, 0.0), n - 1.0)  # the triple's middle frame is q
         j0 = min(int(t), n - 2) if n > 1 else 0
@@ -239,9 +245,7 @@ def _step_tables(D, S, a0, h, n_fine, kmin, kmax):
             c1 = min(c0 + 1, s - 1)
             cost_into[q, b] = ((D[i0, c0] * (1.0 - fv) + D[i0, c1] * fv) * (1.0 - fc)
                                + (D[i1, c0] * (1.0 - fv) + D[i1, c1] * fv) * fc)
-            v = max(k * h, 1.0)
-            c = min(int(v), s)  # the whole speed at or below v, at most the last
-            x = v - c
+            c, x = whole[b], beyond[b]
             at0 = P[j0, c - 1] + x * S[j0, c - 1]  # the integral to v in rows j0 and j1
             at1 = P[j1, c - 1] + x * S[j1, c - 1]
             if c < s:  # a linear between speeds c and c + 1 (beyond the last speed a constant)
