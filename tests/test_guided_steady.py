@@ -565,3 +565,33 @@ def test_the_ground_target_leaves_room_for_the_flight():
     assert pulls[10] == pytest.approx((np.log(k) - np.log(steady)) ** 2)
     assert pulls[250] == pytest.approx((np.log(k) - np.log(5.0)) ** 2)
     assert steady * (n_fine / fine - flying * h) + flying == pytest.approx(n_fine)
+
+
+def test_finite_median_max_matches_its_numpy_twin():
+    """The one-pass median and largest finite entry equal NumPy's on the masked table, to the bit
+    (the step prices, and so the search's pruning, start from them); inf if nothing is finite."""
+    from retime.guided import steady as st
+
+    rng = np.random.default_rng(2)
+    for trial in range(300):
+        T = rng.uniform(0.0, 10.0, size=(int(rng.integers(1, 40)), int(rng.integers(1, 9))))
+        T[rng.uniform(size=T.shape) < rng.uniform(0.0, 1.0)] = np.inf
+        assert tuple(map(float, st._finite_median_max(T))) == st.finite_median_max_numpy(T)
+    assert tuple(map(float, st._finite_median_max(np.full((3, 2), np.inf)))) == (np.inf, np.inf)
+
+
+def test_fill_gaps_takes_the_nearest_finite_row():
+    """Every inf entry takes its column's nearest finite row (the earlier of two as near), brute force."""
+    from retime.guided import steady as st
+
+    rng = np.random.default_rng(3)
+    for trial in range(300):
+        D = rng.uniform(0.0, 1.0, size=(int(rng.integers(1, 20)), int(rng.integers(1, 5))))
+        D[rng.uniform(size=D.shape) < rng.uniform(0.0, 1.0)] = np.inf
+        want = D.copy()
+        for c in range(D.shape[1]):
+            ok = np.flatnonzero(np.isfinite(D[:, c]))
+            for j in range(D.shape[0]):
+                if ok.size and not np.isfinite(D[j, c]):
+                    want[j, c] = D[ok[np.argmin(np.abs(ok - j))], c]  # argmin: the first, the earlier
+        assert np.array_equal(st._fill_gaps(D.copy()), want)

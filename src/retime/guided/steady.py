@@ -94,18 +94,20 @@ class SteadyWarp:
 
 
 def _fill_gaps(D):
-    """Each column's inf entries (triples off the clip, or not scored) from the nearest finite row."""
+    """Each column's inf entries (triples off the clip, or not scored) from the nearest finite row
+    (the earlier of two as near; a column with no finite entry is left as it is). All columns at once."""
     n = D.shape[0]
-    rows = np.arange(n)
-    for c in range(D.shape[1]):
-        col = D[:, c]
-        ok = np.isfinite(col)
-        if ok.any() and not ok.all():
-            idx = np.flatnonzero(ok)
-            at = np.searchsorted(idx, rows)
-            after = idx[np.clip(at, 0, len(idx) - 1)]
-            before = idx[np.clip(at - 1, 0, len(idx) - 1)]
-            D[:, c] = col[np.where(np.abs(before - rows) <= np.abs(after - rows), before, after)]
+    ok = np.isfinite(D)
+    if ok.all():
+        return D
+    rows = np.arange(n)[:, None]
+    before = np.maximum.accumulate(np.where(ok, rows, -1), axis=0)  # the last finite row at or above
+    after = np.minimum.accumulate(np.where(ok, rows, n)[::-1], axis=0)[::-1]  # the first at or below
+    use_before = (after == n) | ((before >= 0) & (rows - before <= after - rows))
+    source = np.where(use_before, before, after)
+    filled = ok.any(axis=0)
+    cols = np.arange(D.shape[1])[None, :]
+    D[:, filled] = D[np.clip(source, 0, n - 1), np.broadcast_to(cols, D.shape)][:, filled]
     return D
 
 
@@ -221,10 +223,16 @@ def _step_tables(D, S, a0, h, n_fine, kmin, kmax):
     # c = D at the step's middle and speed, as _bilinear reads it (the speed's columns once per step)
     col0 = np.empty(K, dtype=np.int64)
     col_w = np.empty(K)
+    # and A's whole speed at or below the step's speed (at most the last) and the fraction beyond it
+    whole = np.empty(K, dtype=np.int64)
+    beyond = np.empty(K)
     for b in range(K):
         v = min(max((kmin + b) * h, 1.0), float(s))
         col0[b] = min(int(v) - 1, s - 2) if s > 1 else 0
         col_w[b] = v - 1.0 - col0[b] if s > 1 else 0.0
+        v = max((kmin + b) * h, 1.0)
+        whole[b] = min(int(v), s)
+        beyond[b] = v - whole[b]
     for q in range(n_fine + 1):
         t = min(max(a0 + q * h, 0.0), n - 1.0)  # the triple's middle frame is q
         j0 = min(int(t), n - 2) if n > 1 else 0
@@ -240,9 +248,7 @@ def _step_tables(D, S, a0, h, n_fine, kmin, kmax):
             c1 = min(c0 + 1, s - 1)
             cost_into[q, b] = ((D[i0, c0] * (1.0 - fv) + D[i0, c1] * fv) * (1.0 - fc)
                                + (D[i1, c0] * (1.0 - fv) + D[i1, c1] * fv) * fc)
-            v = max(k * h, 1.0)
-            c = min(int(v), s)  # the whole speed at or below v, at most the last
-            x = v - c
+            c, x = whole[b], beyond[b]
             at0 = P[j0, c - 1] + x * S[j0, c - 1]  # the integral to v in rows j0 and j1
             at1 = P[j1, c - 1] + x * S[j1, c - 1]
             if c < s:  # a linear between speeds c and c + 1 (beyond the last speed a constant)
@@ -669,6 +675,28 @@ def _priced_scores(ahead, kmin, kmax, price):
     return B[0], steps[0]
 
 
+@njit(cache=True)
+def _finite_median_max(T):
+    """(median, largest) of T's finite entries, as np.median and max of them give (inf, inf if
+    there is none): one pass, no boolean mask of the table (a third of a V1 refinement's overhead)."""
+    flat = T.ravel()
+    finite = np.empty(flat.shape[0])
+    n = 0
+    for x in flat:
+        if np.isfinite(x):
+            finite[n] = x
+            n += 1
+    if n == 0:
+        return INF, INF
+    return np.median(finite[:n]), finite[:n].max()
+
+
+def finite_median_max_numpy(T):
+    """:func:`_finite_median_max`'s plain NumPy twin. For the parity tests."""
+    finite = T[np.isfinite(T)]
+    return (float(np.median(finite)), float(finite.max())) if finite.size else (INF, INF)
+
+
 def _bisect_price(count_at, M, lo, hi, top, iterations):
     """Narrow the price range [lo, hi] about the price at which ``count_at`` (a step count that falls
     as the price rises; None where there is no warp) gives M: widened first (doubling) until its ends'
@@ -761,9 +789,9 @@ def step_price(cost_into, level, rho, kmin, kmax, M, relaxations=RELAXATIONS, to
     best price's, and the nearest price's on the other side of M steps (its bound is the larger
     where a state has too few steps left for its position, or too many), the best relaxation's warp
     as fine positions or None if it has no finite cost, the dual value (-inf if none), the scale)."""
-    finite = cost_into[np.isfinite(cost_into)]
-    width = 4.0 * float(np.median(finite)) + 1e-6 if finite.size else 1.0
-    top = 4.0 * float(finite.max()) + 1.0 if finite.size else 1.0
+    median, largest = _finite_median_max(cost_into)
+    width = 4.0 * float(median) + 1e-6 if np.isfinite(largest) else 1.0
+    top = 4.0 * float(largest) + 1.0 if np.isfinite(largest) else 1.0
     scale = 0.25 * width * M  # about the objective of M steps at the median score
     ahead = _steps_ahead(cost_into, kmin, kmax)
 
