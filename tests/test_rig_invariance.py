@@ -163,6 +163,17 @@ def test_a_quadruped_gets_the_biped_sentence(tmp_path):
     assert g.duration == pytest.approx(0.7 * m.duration, abs=1 / m.fps)
 
 
+def test_guided_on_a_quadruped_says_it_looks_for_no_jump_flights(tmp_path, capsys):
+    """The steady pace pull keeps a jump's flight at its natural speed from the feet's contacts;
+    a rig without two feet has none to find, so guided plays it at one pace and says why."""
+    from retime.cli import main
+
+    out = tmp_path / "out.bvh"
+    assert main(["guided", str(_quadruped(tmp_path)), "--scale", "0.7", "-o", str(out), "--quiet"]) == 0
+    said = capsys.readouterr().out
+    assert "warning: no jump flights looked for" in said and "two-legged" in said
+
+
 @pytest.mark.parametrize("name, side, part", [
     ("mixamorig:LeftFoot", "left", "foot"), ("Beta:RightUpLeg", "right", "thigh"), ("Character1_LeftLeg", "left", "shank"),
     ("Bip01 L Foot", "left", "foot"), ("Bip01 R Calf", "right", "shank"), ("FootLeft", "left", "foot"),

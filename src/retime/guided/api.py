@@ -254,7 +254,7 @@ def guided_result(motion: Motion, settings, request) -> GuidedResult:
     if score == "steady":
         t0 = time.perf_counter()
         natural = ups[0] if free else np.append(np.repeat(ups, np.diff(pos)), ups[-1])  # grid frames at 1x
-        grounded = _grounded(motion, grid_times) if st.pace > 0 else None
+        grounded = _grounded(motion, grid_times, warnings) if st.pace > 0 else None
         warp = steady_warp(F, frames, list(fixed), steadiness, natural,  # the keytimes' positions; the ends too
                            grounded=grounded, pace=float(st.pace))
         stats.optimization_s += time.perf_counter() - t0
@@ -293,16 +293,24 @@ JUMP_FLIGHT = (0.25, 1.0)
 FLIGHT_MARGIN = 0.1
 
 
-def _grounded(motion, grid_times):
+def _grounded(motion, grid_times, warnings):
     """0 within FLIGHT_MARGIN s of a flight lasting JUMP_FLIGHT s (contacts of the input as
     physics and the reports detect them), else 1, at the grid times: where the steady score pulls
-    the warp to one steady speed (1) or to the natural speed (0)."""
+    the warp to one steady speed (1) or to the natural speed (0). A rig without two feet has no
+    flights to find (guided works on any skeleton): all 1, and ``warnings`` says so."""
+    from retime.errors import RetimeError
     from retime.phases import flights
     from retime.physics.model.contacts import foot_contacts
 
     t = np.asarray(grid_times, dtype=float)
     grounded = np.ones(t.size)
-    for a, b in flights(foot_contacts(motion), motion.fps, min_frames=1):
+    try:
+        contacts = foot_contacts(motion)
+    except RetimeError as e:
+        warnings.append(f"no jump flights looked for (the feet were not found: {str(e).split(' (')[0]}); "
+                        "every frame is pulled to one steady pace (--pace 0 keeps the reference's own pace)")
+        return grounded
+    for a, b in flights(contacts, motion.fps, min_frames=1):
         if JUMP_FLIGHT[0] - 1e-9 <= b + 1.0 / motion.fps - a <= JUMP_FLIGHT[1]:
             grounded[(t >= a - FLIGHT_MARGIN) & (t <= b + FLIGHT_MARGIN)] = 0.0
     return grounded
