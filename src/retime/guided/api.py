@@ -307,7 +307,7 @@ def _grounded(motion, grid_times, warnings):
     try:
         contacts = foot_contacts(motion)
     except RetimeError as e:
-        warnings.append(f"no jump flights looked for (the feet were not found: {str(e).split(' (')[0]}); "
+        warnings.append(f"no jump flights looked for (the feet's contacts were not found: {str(e).split(' (')[0]}); "
                         "every frame is pulled to one steady pace (--pace 0 keeps the reference's own pace)")
         return grounded
     for a, b in flights(contacts, motion.fps, min_frames=1):

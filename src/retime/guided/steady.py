@@ -902,7 +902,7 @@ def pace_penalties(grounded, a0, h, n_fine, kmin, kmax, fine, natural, weight):
     return weight * (np.log(k)[None, :] - target[:, None]) ** 2
 
 
-def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, grounded=None, pace=0.0, max_passes=8):
+def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, grounded, pace, max_passes=8):
     """The steady warp of one segment (grid frames a0 -> a1 over len(y) - 1 steps) near path y:
     (fractional grid frames, objective). ``grounded`` (per grid frame, or None: all) and ``pace``: the
     pull of grounded steps to the mean speed, in units of lam (:func:`pace_penalties`)."""
@@ -970,12 +970,14 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, grounded=
 
 
 def steady_warp(F, frames, fixed_positions, steadiness: float, natural=1.0,
-                corridor: int = CORRIDOR, grounded=None, pace: float = 0.0) -> SteadyWarp:
+                corridor: int = CORRIDOR, grounded=None, *, pace: float) -> SteadyWarp:
     """The steady warp near the discrete warp ``frames`` (grid frames at the output frames).
 
     F: the score table; fixed_positions: output positions that keep their grid
     frame (both ends and the keytimes); natural: grid frames per output frame at the original
-    speed (the upsampling), one number or one per output position (a segment takes its first's)."""
+    speed (the upsampling), one number or one per output position (a segment takes its first's).
+    ``pace`` has no default here: its default is ``Settings.pace`` (a benchmark that left it out
+    timed the objective without the pull)."""
     frames = np.asarray(frames, dtype=np.int64)
     m = len(frames)
     D = speed_costs(np.asarray(F))
