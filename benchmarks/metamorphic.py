@@ -26,11 +26,13 @@ optimizer's tolerance (issue 25); guided essentially exact under renames, turns 
     python3 benchmarks/metamorphic.py --physics-all            # physics on every clip too
 
 Raw results: one JSON per clip, variant and method in benchmarks/out/metamorphic/ (kept: a rerun
-only computes what is missing, ``--fresh`` recomputes).
+only computes what is missing, ``--fresh`` recomputes; a variant run by other code than its original
+(another retime source) is stale and left out of the tables).
 """
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import multiprocessing
 import sys
@@ -159,6 +161,18 @@ def result_path(path: Path, variant: str | None, method: str) -> Path:
     return OUT / f"{path.stem}.{path.suffix[1:]}__{variant or 'original'}__{method}.json"
 
 
+@functools.lru_cache(maxsize=None)
+def code_version() -> str:
+    """A hash of retime's source files: two runs compare only if the same code made them."""
+    import hashlib
+    import retime
+
+    h = hashlib.sha1()
+    for f in sorted(Path(retime.__file__).parent.rglob("*.py")):
+        h.update(f.read_bytes())
+    return h.hexdigest()[:12]
+
+
 def job(args):
     path, variant, method = args
     t0 = time.perf_counter()
@@ -169,7 +183,7 @@ def job(args):
             rec = {"frame": _frame_record(motion), "factor": factor, **run_method(method, motion)}
         except Exception as e:  # a traceback is a finding: keep it, go on with the other runs
             rec = {"error": f"{type(e).__name__}: {e}", "traceback": traceback.format_exc()}
-    rec.update(clip=str(path), variant=variant or "original", method=method,
+    rec.update(clip=str(path), variant=variant or "original", method=method, code=code_version(),
                seconds=round(time.perf_counter() - t0, 2),
                warnings=sorted({f"{w.category.__name__}: {w.message}" for w in caught})[:5])
     out = result_path(path, variant, method)
@@ -194,9 +208,12 @@ def curve_diff(a: dict, b: dict) -> float:
 
 
 def compare(path, variant, method) -> dict | None:
-    """The variant's run against the original's (None: either not run yet)."""
+    """The variant's run against the original's (None: either not run yet, or the two were run by
+    different code, :func:`code_version`: the variant is stale)."""
     a, b = load(path, None, method), load(path, variant, method)
     if a is None or b is None:
+        return None
+    if b.get("code") != a.get("code"):
         return None
     row = {"clip": clip_name(path), "variant": variant, "frame": b.get("frame"), "orig_frame": a.get("frame")}
     for which, rec in (("orig", a), ("var", b)):

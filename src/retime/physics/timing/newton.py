@@ -1,8 +1,8 @@
 """Newton's method on the banded problem: the polish after L-BFGS (issue 24).
 
 The objective is a sum over source samples, each of which reads the coefficients of one span of
-the timing spline, c_m..c_{m+b} (b = the spline's degree, 4 for the quartic; :attr:`BandedCoordinates.band` reads b
-from the spline's span matrices), and the duration T. In the coordinates (c, T) -- the interior
+the timing spline, c_m..c_{m+b} (b = the spline's degree, 4 for the quartic; :attr:`BandedCoordinates.band` is
+:attr:`TimingSpline.band`), and the duration T. In the coordinates (c, T) -- the interior
 coefficients that are not pinned (ends, locks), plus T when the duration is free -- its Hessian is
 therefore **banded** (half-bandwidth b) with one dense row and column for T: an arrowhead. (In the
 optimizer's w, each c is a normalized cumulative sum of all of them, so the same Hessian is dense.)
@@ -76,9 +76,7 @@ class BandedCoordinates:
         self.free = np.array([k for k in range(sp.n_c) if k not in pinned], dtype=np.int64)
         self.free_T = sp.free
         self.n = len(self.free) + (1 if self.free_T else 0)
-        # a sample reads the coefficients of one span, span_matrices' last axis (4 for the cubic): the
-        # Hessian's half-bandwidth is one less
-        self.band = sp.span_matrices.shape[-1] - 1
+        self.band = sp.band  # the Hessian's half-bandwidth: a sample reads c_m .. c_{m + band}
 
     def from_w(self, w):
         sp = self.spline
