@@ -213,7 +213,7 @@ def compare(path, variant, method) -> dict | None:
     a, b = load(path, None, method), load(path, variant, method)
     if a is None or b is None:
         return None
-    if b.get("code") != a.get("code"):
+    if a.get("code") is None or b.get("code") != a.get("code"):  # no hash: stored before it was kept
         return None
     row = {"clip": clip_name(path), "variant": variant, "frame": b.get("frame"), "orig_frame": a.get("frame")}
     for which, rec in (("orig", a), ("var", b)):
