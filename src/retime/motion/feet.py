@@ -401,6 +401,7 @@ def foot_contacts(motion) -> np.ndarray:
     sk = motion.skeleton
     feet = find_feet(sk)
     legs = skeleton_limbs(sk).legs
-    frames = leg_frames(motion, [j for pair in feet.values() for j in pair] + [legs[s][0] for s in legs])
+    thighs = [leg[0] for leg in legs.values() if leg[0] is not None]  # where the body faces (a rig without feet)
+    frames = leg_frames(motion, [j for pair in feet.values() for j in pair] + thighs)
     soles = [default_foot(sk, side, foot, toe, frames, motion.fps) for side, (foot, toe) in feet.items()]
     return contact_states(sole_positions(soles, sk, frames[1], frames[0]), motion.fps)
