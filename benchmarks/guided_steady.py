@@ -120,7 +120,7 @@ def pace_ratio(motion):
 
 
 def clip_flights(motion, kind):
-    from retime.physics.model.contacts import foot_contacts
+    from retime.motion.feet import foot_contacts
 
     if kind not in ("jump", "run"):
         return []

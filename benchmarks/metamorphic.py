@@ -134,7 +134,7 @@ def run_method(method: str, motion) -> dict:
         return {"refused": f"{motion.n_frames} frame(s): nothing to retime"}
     try:
         if method == "check":
-            from retime.physics.model.body import skeleton_limbs
+            from retime.motion.feet import skeleton_limbs
             from retime.physics.check import check_clip
 
             skeleton_limbs(motion.skeleton)  # as `retime check` does: no legs is refused first

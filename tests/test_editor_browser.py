@@ -197,6 +197,49 @@ def test_guided_blend_slider(browser, server, shots):
     page.close()
 
 
+def test_guided_pace_beside_the_blend_slider(browser, tmp_path, shots):
+    """Guided's pace pull is a number beside the blend slider, and the page's value reaches the solve: on
+    a walk that slows in a turn, pace 0 gives the command line's pace-0 warp (the default plays it
+    apart), and a negative pace is refused in one line."""
+    from retime.editor.server import BackgroundServer, create_app, load_clip
+    from retime.guided import guided_solve
+    from retime.motion import load_motion, save_bvh
+    from test_guided_steady import paced_walk
+
+    save_bvh(paced_walk(load_motion(bundled_path("16_15.amc")), turn=True), tmp_path / "walk.bvh")
+    clip = load_clip(tmp_path / "walk.bvh")
+    (tmp_path / "edits").mkdir()
+    with BackgroundServer(create_app(clip, tmp_path / "edits")) as url:
+        errors = []
+        page = open_page(browser, url, errors)
+        page.click('#methods button[data-method="guided"]')
+        wait_js(page, "window.__retime.solution.method === 'guided'")
+        order = page.evaluate("[...document.querySelectorAll('#params input')].map(e => e.id)")
+        assert order.index("param-guided-pace") == order.index("param-guided-blend") + 1
+        pace = page.locator("#param-guided-pace")
+        assert pace.get_attribute("type") == "number" and pace.get_attribute("min") == "0"
+        duration = round(0.6 * clip.motion.n_frames / clip.motion.fps, 3)
+        page.fill("#duration", str(duration))
+        page.press("#duration", "Enter")
+        wait_js(page, f"Math.abs(window.__retime.solution.duration - {duration}) < 1e-9")
+        default = page.evaluate("window.__retime.solution.curve")
+        pace.fill("0")
+        pace.dispatch_event("change")
+        wait_js(page, "window.__retime.params.guided.pace === 0 && window.__retime.solution.method === 'guided'")
+        moved = f"window.__retime.solution.curve.s.some((s, k) => Math.abs(s - {default['s']}[k]) > 0.1)"
+        wait_js(page, moved)
+        curve = page.evaluate("window.__retime.solution.curve")
+        cli = guided_solve(clip.motion, duration=duration, pace=0.0).curve
+        np.testing.assert_allclose(curve["s"], cli(np.array(curve["t"])), atol=2e-6)  # the page gets 6 decimals
+        pace.fill("-1")
+        pace.dispatch_event("change")
+        page.wait_for_selector(".toast")
+        assert "Pace pull: -1 is outside 0 .. 100" in page.inner_text(".toast")
+        page.screenshot(path=str(shots / "editor-6-pace.png"))
+        assert not [e for e in errors if "400" not in e], errors
+        page.close()
+
+
 @pytest.mark.parametrize("method", ["physics", "guided", "linear"])
 def test_drag_latency(browser, server, method, capsys, shots):
     """Drag a control point; time each input -> re-solved (reconverged) curve painted on screen."""

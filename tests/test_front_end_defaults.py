@@ -75,8 +75,8 @@ def test_the_editors_controls_start_at_settings():
 
     guided = {p.name: p.default for p in GuidedMethod.params}
     d = GuidedSettings()
-    assert (guided["max_skip"], guided["neighbors"], guided["fast"], guided["blend"]) == (
-        d.max_skip, d.neighbors, d.fast, d.blend)
+    assert (guided["max_skip"], guided["neighbors"], guided["fast"], guided["blend"], guided["pace"]) == (
+        d.max_skip, d.neighbors, d.fast, d.blend, d.pace)
     physics = {p.name: p.default for p in PhysicsMethod.param_specs(Clip("c", load_motion(bundled_path("16_33.amc"))))}
     p = PhysicsSettings()
     assert (physics["objective"], physics["alpha"]) == (p.objective, p.alpha)
@@ -103,5 +103,5 @@ def test_the_skip_limit_is_the_back_pointers_range():
 
 def test_the_blender_add_on_defaults_are_retimes():
     defaults = addon_module("options").DEFAULTS
-    assert defaults["blend"] == GuidedSettings().blend
+    assert (defaults["blend"], defaults["pace"]) == (GuidedSettings().blend, GuidedSettings().pace)
     assert PhysicsSettings().gravity_scale is None and defaults["gravity_scale"] == 1.0  # None: standard gravity

@@ -9,7 +9,7 @@ from retime.data import bundled_path
 from retime.errors import RetimeError
 from retime.guided import guided_solve, guided_warp
 from retime.phases import flights as contact_flights, interval_speed
-from retime.physics.model.contacts import foot_contacts
+from retime.motion.feet import foot_contacts
 from retime.motion import load_motion
 from retime.warp import apply_timing
 

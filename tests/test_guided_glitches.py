@@ -121,7 +121,7 @@ def test_a_glitch_in_another_reference_is_filled_and_named(walk):
 
 @pytest.mark.parametrize("scale", [0.6, 1.5])
 def test_a_real_flight_is_not_a_glitch(jump, scale, monkeypatch):
-    from retime.physics.model.contacts import foot_contacts
+    from retime.motion.feet import foot_contacts
 
     x, _ = pose_pair(jump, jump, 1.0)
     assert find_glitches(x, jump.fps) == []

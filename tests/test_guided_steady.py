@@ -84,7 +84,7 @@ def test_blend_zero_is_the_spline_warp(jump):
 
 
 def test_blend_moves_the_flight_speed_monotonically(jump):
-    from retime.physics.model.contacts import foot_contacts
+    from retime.motion.feet import foot_contacts
     from retime.phases import longest_flight
 
     a, b = longest_flight(foot_contacts(jump), np.arange(jump.n_frames) / jump.fps)
@@ -538,7 +538,7 @@ def test_the_steady_pace_survives_rounding_units_and_axes(walk, variant):
 
 @pytest.mark.parametrize("scale", [0.6, 1.5])
 def test_a_jump_flight_keeps_its_natural_speed_under_the_pull(jump, scale):
-    from retime.physics.model.contacts import foot_contacts
+    from retime.motion.feet import foot_contacts
     from retime.phases import longest_flight
 
     a, b = longest_flight(foot_contacts(jump), np.arange(jump.n_frames) / jump.fps)

@@ -46,6 +46,9 @@ class RetimeSettings(bpy.types.PropertyGroup):
     reference: bpy.props.StringProperty(name="Reference", description="The action whose timing to imitate (empty: the action itself)")
     blend: bpy.props.FloatProperty(name="Reference Influence", default=DEFAULTS["blend"], min=0.0, max=1.0, subtype="FACTOR",
                                    description="0: the smooth spline through the keytimes; 1: the guided warp")
+    pace: bpy.props.FloatProperty(name="Pace Pull", default=DEFAULTS["pace"], min=0.0, soft_max=100.0,
+                                  description="Pulls a walk or run to one steady speed (a jump's flight keeps its own); "
+                                              "0: the reference's own pace")
     gravity_scale: bpy.props.FloatProperty(name="Gravity", default=DEFAULTS["gravity_scale"], min=0.01, max=100.0)
     mass: bpy.props.StringProperty(name="Mass Factors", description="BONE=FACTOR, comma separated (e.g. lfemur=10)")
 
@@ -70,6 +73,7 @@ def draw_panel(layout, context):
     if settings.method == "guided":
         layout.prop_search(settings, "reference", bpy.data, "actions")
         layout.prop(settings, "blend", slider=True)
+        layout.prop(settings, "pace")
     if settings.method == "physics":
         layout.prop(settings, "gravity_scale")
         layout.prop(settings, "mass")
@@ -79,7 +83,8 @@ def draw_panel(layout, context):
     op.scale = settings.scale if settings.timing == "SCALE" else 0.0
     op.duration = settings.duration if settings.timing == "DURATION" else 0.0
     op.reference = settings.reference if settings.method == "guided" else ""
-    op.blend = settings.blend if settings.method == "guided" else 1.0
+    op.blend = settings.blend if settings.method == "guided" else DEFAULTS["blend"]
+    op.pace = settings.pace if settings.method == "guided" else DEFAULTS["pace"]
     op.gravity_scale, op.mass = settings.gravity_scale, settings.mass if settings.method == "physics" else ""
     check_view.draw_rows(layout, context)
 

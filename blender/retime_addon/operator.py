@@ -173,8 +173,8 @@ class Job(ArmatureJob):
             self._export(context, self.reference, ref_slot, frames, reference)
         argv = command(self.executable, p.method, source, os.path.join(self.folder, "retimed.bvh"),
                        os.path.join(self.folder, "warp.csv"), duration=p.duration, scale=p.scale,
-                       keytimes=self.keytimes, reference=reference, blend=p.blend, gravity_scale=p.gravity_scale,
-                       mass=self._mass_factors() if p.method == "physics" else ())
+                       keytimes=self.keytimes, reference=reference, blend=p.blend, pace=p.pace,
+                       gravity_scale=p.gravity_scale, mass=self._mass_factors() if p.method == "physics" else ())
         self.run = Run(argv, self.folder)
 
     def finish(self, context):
@@ -253,6 +253,9 @@ class RETIME_OT_retime(BackgroundRunOperator, bpy.types.Operator):
     blend: bpy.props.FloatProperty(name="Reference Influence", description="Guided: 0 plays the smooth spline "
                                    "through the keytimes, 1 the guided warp (Hsu et al. sec. 5)", default=DEFAULTS["blend"],
                                    min=0.0, max=1.0, subtype="FACTOR")
+    pace: bpy.props.FloatProperty(name="Pace Pull", description="Guided: pulls a walk or run to one steady speed (a "
+                                  "jump's flight keeps its own); 0: the reference's own pace", default=DEFAULTS["pace"],
+                                  min=0.0, soft_max=100.0)
     gravity_scale: bpy.props.FloatProperty(name="Gravity", description="Physics: gravity times this",
                                            default=DEFAULTS["gravity_scale"], min=0.01, max=100.0)
     mass: bpy.props.StringProperty(name="Mass Factors", description="Physics: BONE=FACTOR, comma separated "

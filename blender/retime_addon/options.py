@@ -5,8 +5,9 @@ checks both against retime itself, outside Blender."""
 import math
 
 #: retime's own defaults for the options the panel and the operator offer (retime.guided.method.Settings'
-#: blend; physics' standard gravity, a gravity scale of 1)
-DEFAULTS = {"blend": 1.0, "gravity_scale": 1.0}
+#: blend and pace; physics' standard gravity, a gravity scale of 1); tests/test_front_end_defaults.py
+#: checks them against retime's Settings
+DEFAULTS = {"blend": 1.0, "pace": 10.0, "gravity_scale": 1.0}
 
 
 def output_frames(method, duration, scale, n_source, fps):
@@ -32,22 +33,24 @@ OPTIONS = (
     ("keytimes", "--keytime", ("linear", "guided", "physics")),
     ("reference", "--reference", ("guided",)),
     ("blend", "--blend", ("guided",)),
+    ("pace", "--pace", ("guided",)),
     ("gravity_scale", "--gravity-scale", ("physics",)),
     ("mass", "--mass", ("physics",)),
 )
 
 
 def command(executable, method, source, output, warp, duration=0.0, scale=0.0, keytimes=(), reference=None,
-            blend=DEFAULTS["blend"], gravity_scale=DEFAULTS["gravity_scale"], mass=()):
+            blend=DEFAULTS["blend"], pace=DEFAULTS["pace"], gravity_scale=DEFAULTS["gravity_scale"], mass=()):
     """The ``retime`` command line of a request, from :data:`OPTIONS`: ``duration`` or ``scale`` (0:
-    unset; a duration wins), ``keytimes`` [(source s, output s)], a guided ``reference`` BVH and
-    ``blend``, a physics ``gravity_scale`` and ``mass`` ["SEGMENT=FACTOR", ...]. An option at retime's
+    unset; a duration wins), ``keytimes`` [(source s, output s)], a guided ``reference`` BVH,
+    ``blend`` and ``pace``, a physics ``gravity_scale`` and ``mass`` ["SEGMENT=FACTOR", ...]. An option at retime's
     default is left out, so retime's own default applies."""
     given = {"duration": _typed(duration) if duration > 0 else None,
              "scale": _typed(scale) if scale > 0 and not duration > 0 else None,
              "keytimes": [f"{src!r}={dst!r}" for src, dst in keytimes],
              "reference": reference,
              "blend": _typed(blend) if blend != DEFAULTS["blend"] else None,
+             "pace": _typed(pace) if pace != DEFAULTS["pace"] else None,
              "gravity_scale": _typed(gravity_scale) if abs(gravity_scale - DEFAULTS["gravity_scale"]) > 1e-9 else None,
              "mass": list(mass)}
     argv = [executable, method, source, "-o", output, "--warp", warp]

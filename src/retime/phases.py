@@ -2,7 +2,7 @@
 timing curve plays each: the one place retime finds flights and phase speeds.
 
 Plain arrays in, plain lists out: ``contact`` is a (F,) or (F, points) bool array of a detector's
-contact states (:func:`retime.physics.model.contacts.foot_contacts`), ``times`` the frames' source times.
+contact states (:func:`retime.motion.feet.foot_contacts`), ``times`` the frames' source times.
 """
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The clips of a batch: files, folders walked for motion files (.bvh, .amc; .fbx, .glb, .gltf with bpy), and jobs files (.csv or .toml) with
-per-clip overrides (duration, scale, keytimes, reference, blend)."""
+per-clip overrides (duration, scale, keytimes, reference, blend, pace)."""
 from __future__ import annotations
 
 import csv
@@ -17,7 +17,8 @@ from .layout import BATCH_FILES, OUTPUT_SUFFIXES
 
 MOTION_SUFFIXES = READABLE  # what the single-clip commands read (FBX and glTF with bpy)
 JOBS_SUFFIXES = (".csv", ".toml")
-JOB_FIELDS = ("motion", "duration", "scale", "keytimes", "reference", "blend")
+JOB_FIELDS = ("motion", "duration", "scale", "keytimes", "reference", "blend", "pace")
+GUIDED_FIELDS = ("blend", "pace")  # the fields that are options of guided alone
 
 
 @dataclass(frozen=True)
@@ -32,8 +33,13 @@ class Clip:
     keytimes: tuple[tuple[float, float], ...] = ()
     reference: Path | None = None
     blend: float | None = None  # guided's reference influence, 0..1 (None: the method's default)
+    pace: float | None = None  # guided's pull to one steady pace, >= 0 (None: the method's default)
     origin: str = ""  # where the clip was named (for error messages): a folder, a jobs file line
     jobs_file: Path | None = None  # the jobs file naming it, if any
+
+    def guided_options(self) -> dict:
+        """The guided-only options the clip gives (:data:`GUIDED_FIELDS`; unset ones are left to Settings)."""
+        return {k: getattr(self, k) for k in GUIDED_FIELDS if getattr(self, k) is not None}
 
     def outputs(self, outdir: Path, method: str) -> dict[str, Path]:
         base = outdir / Path(self.name)
@@ -205,8 +211,9 @@ def _job_clip(row: dict, where: str, jobs_file: Path, defaults: Defaults) -> Cli
     reference_text = _text(row.get("reference"), "reference", where)
     reference = jobs_file.parent / reference_text if reference_text else None
     blend = _unit(row.get("blend"), "blend", where)
+    pace = _non_negative(row.get("pace"), "pace", where)
     return _clip(motion, _job_name(motion, jobs_file), defaults, origin=where, duration=duration, scale=scale,
-                 keytimes=keytimes or None, reference=reference, blend=blend, jobs_file=jobs_file)
+                 keytimes=keytimes or None, reference=reference, blend=blend, pace=pace, jobs_file=jobs_file)
 
 
 def read_jobs_csv(path: Path, defaults: Defaults) -> list[Clip]:
@@ -280,6 +287,10 @@ def _number(value, name, where, ok, what) -> float | None:
 
 def _positive(value, name, where) -> float | None:
     return _number(value, name, where, lambda v: v > 0 and math.isfinite(v), "a positive number")
+
+
+def _non_negative(value, name, where) -> float | None:
+    return _number(value, name, where, lambda v: v >= 0 and math.isfinite(v), "a finite number >= 0")
 
 
 def _unit(value, name, where) -> float | None:

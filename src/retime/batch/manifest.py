@@ -20,8 +20,7 @@ def clip_hash(clip: Clip, method: str, options: dict) -> str | None:
     h = hashlib.sha256()
     settings = {"method": method, "duration": clip.duration, "scale": clip.scale,
                 "keytimes": [list(k) for k in clip.keytimes], "options": options}
-    if clip.blend is not None:  # only when given: the fingerprints of earlier batches stay as they were
-        settings["blend"] = clip.blend
+    settings.update(clip.guided_options())  # only when given: the fingerprints of earlier batches stay as they were
     h.update(json.dumps(settings, sort_keys=True).encode())
     files = files_read(clip.motion) + (files_read(clip.reference) if clip.reference else [])
     for path in files:

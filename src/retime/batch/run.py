@@ -52,8 +52,8 @@ def clip_task(clip: Clip, method: str, outputs: dict[str, Path], gravity_scale: 
     from ..method import settings_type
 
     options = {}
-    if method == "guided" and clip.blend is not None:
-        options["blend"] = clip.blend
+    if method == "guided":
+        options.update(clip.guided_options())
     if method == "physics" and gravity_scale is not None:
         options["gravity_scale"] = gravity_scale
     settings = settings_type(method)(**options)

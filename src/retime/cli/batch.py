@@ -11,7 +11,7 @@ from .physics import _gravity_scale
 
 EPILOG = """examples:
   retime batch captures/ -o out/ --method linear --scale 0.5
-  retime batch jobs.csv -o out/ --method guided          (header: motion,duration,scale,keytimes,reference,blend)
+  retime batch jobs.csv -o out/ --method guided          (header: motion,duration,scale,keytimes,reference,blend,pace)
   retime batch a.bvh b.amc -o out/ --method physics --gravity-scale 0.5 --scheduler tcp://10.0.0.5:8786
 
 Writes OUTDIR/X.bvh, X.csv (warp) and X.json (physics report) per clip, or with --method check X.json
@@ -69,8 +69,9 @@ def run(args):
     for clip in clips:
         if clip.reference is not None and args.method != "guided":
             raise RetimeError(f"{clip.origin}: a reference is for --method guided")
-        if clip.blend is not None and args.method != "guided":
-            raise RetimeError(f"{clip.origin}: a blend is for --method guided")
+        for name in clip.guided_options():
+            if args.method != "guided":
+                raise RetimeError(f"{clip.origin}: a {name} is for --method guided")
         if args.method == "linear" and clip.duration is None and clip.scale is None and not clip.keytimes:
             raise RetimeError(f"{clip.origin}: say how to retime {clip.motion}: --duration SEC, --scale X, "
                               "--keytime SRC=DST or a jobs file's columns")

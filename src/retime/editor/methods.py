@@ -204,6 +204,8 @@ class GuidedMethod(Method):
         Param("fast", "Coarse-to-fine", "bool", _d.fast, help="the heuristic of Hsu §3.3 instead of the exact search"),
         Param("blend", "Reference influence", "slider", _d.blend, 0.0, 1.0, 0.05,
               help="0: the smooth spline through the keytimes; 1: the guided warp; between: a mix (Hsu §5)"),
+        Param("pace", "Pace pull", "number", float(_d.pace), 0.0, 100.0, 1.0,
+              help="pulls walks and runs to one steady speed (a jump's flight keeps its own); 0: the reference's own pace"),
     )
 
     def solve(self, job):
@@ -214,7 +216,7 @@ class GuidedMethod(Method):
                 raise RetimeError("no reference motion: start the editor with --reference REF to use one")
             reference = self.clip.reference
         keys = keytimes_of(job.points, locked_only=True)
-        given = {k: type(getattr(self._d, k))(params[k]) for k in ("max_skip", "neighbors", "fast", "blend")
+        given = {k: type(getattr(self._d, k))(params[k]) for k in ("max_skip", "neighbors", "fast", "blend", "pace")
                  if k in params}
         settings = GuidedSettings(reference=reference, **given)
         result = solve("guided", self.clip.motion, Request(duration=job.duration, keytimes=keys, settings=settings))

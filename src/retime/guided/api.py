@@ -300,7 +300,7 @@ def _grounded(motion, grid_times, warnings):
     flights to find (guided works on any skeleton): all 1, and ``warnings`` says so."""
     from retime.errors import RetimeError
     from retime.phases import flights
-    from retime.physics.model.contacts import foot_contacts
+    from retime.motion.feet import foot_contacts
 
     t = np.asarray(grid_times, dtype=float)
     grounded = np.ones(t.size)

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..errors import RetimeError
 from .fk import forward_kinematics
 from .frame import up_rotation, up_vector
 from .model import Motion, Skeleton
@@ -271,3 +272,40 @@ def conform(motion: Motion, max_contact_shift: float = MAX_CONTACT_SHIFT_M) -> C
     out = Motion(sk, rot, tr, motion.fps)
     return Conformed(out, R, removed_roots=removed, dropped_props=props, fixed_bones=fixed,
                      stretch=worst if worst is not None and worst.share > NOISE_STRETCH else None, contact_shift=shift)
+
+
+def conformed(motion):
+    """The motion as physics sees it (:func:`conform`: y up, one floating base, rigid bones), with a
+    bone stretch too large to make rigid as a RetimeError."""
+    try:
+        return conform(motion)
+    except BoneStretch as e:
+        where = f"{motion.skeleton.source}: " if motion.skeleton.source else ""
+        raise RetimeError(f"{where}{e}") from None
+
+
+def bind_pose_frames(motion, rest_deg=2.0, max_seconds=0.25) -> int:
+    """Leading frames of an exporter's bind pose to leave out of the dynamics (0: none).
+
+    Some BVH exporters (e.g. the Daz-friendly CMU conversions) start with a T-pose frame, every joint
+    rotation near identity (half the joints within 2 degrees), then swing into the motion within a
+    few frames: 90 degrees of arm in 40 ms, which no body does and which low-passing smears over a
+    tenth of a second of dynamics. When frame 0 is such a rest pose and its first step is larger than
+    the 99th percentile of the steps after ``max_seconds``, the frames up to the first step no larger
+    than that are counted."""
+    q = np.asarray(motion.rotations, dtype=float)
+    F = len(q)
+    if F < 8:
+        return 0
+    rest = 2.0 * np.degrees(np.arccos(np.clip(np.abs(q[0, 1:, 3]), 0.0, 1.0)))
+    if rest.size == 0 or np.median(rest) > rest_deg:  # fingers and toes may rest bent
+        return 0
+    step = 2.0 * np.degrees(np.arccos(np.clip(np.abs(np.sum(q[1:] * q[:-1], axis=-1)), 0.0, 1.0))).max(axis=1)
+    window = int(max_seconds * motion.fps)
+    limit = np.percentile(step[min(F - 2, window):], 99)  # the motion's own fastest steps
+    if step[0] <= limit:
+        return 0
+    for f in range(1, min(F - 4, window + 1)):
+        if step[f] <= limit:
+            return f
+    return 0

@@ -14,6 +14,7 @@ A skeleton with no such pair, or with two pairs of legs (a quadruped), is not a 
 """
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass, field
 
@@ -54,6 +55,7 @@ def name_words(name: str) -> list[str]:
     return [w.lower() for w in words if w]
 
 
+@functools.lru_cache(maxsize=8192)  # a rig is read for its limbs often (each conform), by the same names
 def side_and_part(name: str) -> tuple[str | None, str]:
     """(side or None, the rest of the name's words joined) of a joint name."""
     words = name_words(name)
@@ -76,6 +78,7 @@ def is_helper(name: str) -> bool:
     return bool(set(name_words(name)) & _HELPER_WORDS)
 
 
+@functools.lru_cache(maxsize=8192)
 def part_of(name: str) -> str | None:
     """The body part a joint name names ('foot', 'shank', ..., 'head'), or None; fingers are None."""
     if is_helper(name):

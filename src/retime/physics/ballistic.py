@@ -19,9 +19,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..motion.feet import above_own_floor
 from ..phases import runs
 from .constants import G
-from .model.contacts import above_own_floor, corner_positions
+from .model.contacts import corner_positions
 
 CLEAR_M = 0.03  # a foot point this close to its floor bears on it ...
 NEAR_M = 0.05  # ... and one this close that is nearly still (a foot rolling onto its tip)
@@ -103,15 +104,15 @@ class FootPoints:
 def foot_points(motion, body) -> FootPoints:
     """The :class:`FootPoints` of ``motion`` (y up, as physics sees it) with ``body``'s masses and
     soles. Heights are above each point's own floor, as contact detection takes them
-    (:func:`.model.contacts.above_own_floor`)."""
-    from .model.body import bone_ends, centre_of_mass, world_frames
-    from .model.contacts import _feet_in_order
+    (:func:`retime.motion.feet.above_own_floor`)."""
+    from ..motion.feet import bone_ends, feet_in_order
+    from .model.body import centre_of_mass, world_frames
 
     pos, R = world_frames(motion)
     com = centre_of_mass(body, R, pos)
     corners = corner_positions(body, motion.skeleton, R, pos)  # (F, 8, 3): 4 per foot, left first
     ends = bone_ends(motion.skeleton)
-    tips = [motion.skeleton.index(f.toe_joint) for f in _feet_in_order(body)]
+    tips = [motion.skeleton.index(f.toe_joint) for f in feet_in_order(body.feet)]
     tip = np.stack([pos[:, j] + np.einsum("fab,b->fa", R[:, j], ends[j]) for j in tips], axis=1)  # (F, 2, 3)
     points = np.concatenate([corners, tip], axis=1)  # (F, 10, 3)
     height = above_own_floor(points[..., 1], motion.fps)

@@ -89,7 +89,7 @@ def find_clip(name: str = DEFAULT_CLIP) -> Path:
 def flight_phase(motion) -> tuple[float, float] | None:
     """(start, end) source times of the longest stretch with no foot on the ground of the motion as
     physics sees it (conformed), or None (also when physics cannot conform it: the methods say why)."""
-    from retime.physics.model.contacts import foot_contacts
+    from retime.motion.feet import foot_contacts
 
     try:
         return longest_flight(foot_contacts(motion), np.arange(motion.n_frames) / motion.fps)

@@ -24,12 +24,8 @@ Defaults (every value can be overridden by a TOML body file, see :func:`read_bod
   0.41, shank 0.45) and the inertia is that of a rod with de Leva's radii of gyration (transverse,
   longitudinal; e.g. thigh 0.329, 0.149 of the bone length). A bone of zero length gets a sphere of
   radius 0.1 m.
-* **Soles**: one rectangle per foot, with "up" the world's y axis as the foot sees it when most
-  planted in the motion (averaged over the 5 % most planted frames; the rest pose without a
-  motion): the sole plane lies ``SOLE_PAD`` = 2 cm below the lower of the toe joint and the toe tip; heel
-  corners (on the foot joint's body) are 0.3 foot-lengths behind the ankle, 0.26 foot-lengths apart;
-  toe corners (on the toe joint's body, or the foot's if there is none) are halfway from the toe
-  joint to the tip, 0.38 foot-lengths apart (foot length = heel to tip).
+* **Soles**: one rectangle per foot (:func:`retime.motion.feet.default_foot`, shared with the
+  contact detection every method uses).
 * **Friction** 0.5; **torque limits** estimated from the original motion (see
   :mod:`retime.physics.model.dynamics`): ``torque_margin`` (1.5) times the largest |torque| of each joint
   axis over the clip, plus ``torque_floor`` (2 N m), but never below the joint's **strength**:
@@ -51,11 +47,11 @@ import numpy as np
 
 from ...errors import FormatError, RetimeError
 from ...io_util import atomic_write
-from ...motion.rig import Limbs, NotBiped, bone_joints, descendants, limbs_by_name, part_of
+from ...motion.feet import SIDES, Foot, bone_ends, default_foot, find_feet, skeleton_limbs
+from ...motion.rig import bone_joints, descendants, part_of
 from .tree import FIXED, FREE, SPHERICAL, TreeModel
 
 BODY_MASS = 70.0
-SOLE_PAD = 0.02
 FRICTION = 0.5
 TORQUE_MARGIN = 1.5
 TORQUE_FLOOR = 2.0
@@ -83,23 +79,6 @@ DE_LEVA = {
 }
 SIDED = ("upperarm", "forearm", "hand", "thigh", "shank", "foot")
 TOE_RE = re.compile(r"toe|ball|metatars", re.I)
-SIDES = ("left", "right")
-
-
-@dataclass
-class Foot:
-    """A rectangular sole: two heel corners on ``joint``'s body and two toe corners on
-    ``toe_joint``'s body, each in that joint's frame (metres)."""
-
-    side: str
-    joint: str
-    toe_joint: str
-    heel: np.ndarray  # (2, 3)
-    toe: np.ndarray  # (2, 3)
-
-    def __post_init__(self):
-        self.heel = np.asarray(self.heel, dtype=float).reshape(2, 3)
-        self.toe = np.asarray(self.toe, dtype=float).reshape(2, 3)
 
 
 @dataclass
@@ -202,63 +181,6 @@ def rest_positions(skeleton) -> np.ndarray:
     for j, p in enumerate(skeleton.parents):
         pos[j] = off[j] + (pos[p] if p >= 0 else 0.0)
     return pos
-
-
-def bone_ends(skeleton) -> np.ndarray:
-    """(J, 3) end of each joint's bone in its frame: the mean of its children's offsets (ignoring
-    children at the joint itself) and end sites; zero if there are none."""
-    off = skeleton.offsets * skeleton.meters_per_unit
-    ends = [[] for _ in range(skeleton.n_joints)]
-    for j, p in enumerate(skeleton.parents):
-        if p >= 0:
-            ends[p].append(off[j])
-    for j, o in skeleton.end_sites:
-        ends[j].append(np.asarray(o, dtype=float) * skeleton.meters_per_unit)
-    out = np.zeros((skeleton.n_joints, 3))
-    for j, e in enumerate(ends):
-        e = [v for v in e if np.linalg.norm(v) > 1e-6]
-        if e:
-            out[j] = np.mean(e, axis=0)
-    return out
-
-
-BIPED_SENTENCE = ("physics-based retiming needs a two-legged character (two legs ending in feet on the ground), "
-                  "and this skeleton is not one")
-
-
-def skeleton_limbs(skeleton) -> Limbs:
-    """The skeleton's limbs: those found when it was loaded (:mod:`retime.motion.frame`), else by name."""
-    frame = getattr(skeleton, "frame", None)
-    why = getattr(frame, "biped", "")
-    try:
-        limbs = frame.limbs if frame is not None else limbs_by_name(skeleton)
-    except NotBiped as e:
-        limbs, why = None, str(e)
-    if limbs is None:
-        why = why or "no joints named like feet"
-        where = f"{skeleton.source}: " if skeleton.source else ""
-        raise RetimeError(f"{where}{BIPED_SENTENCE} ({why}; joints: {', '.join(skeleton.names[:12])}"
-                          f"{', ...' if skeleton.n_joints > 12 else ''}). If it is one, name its feet in a body file "
-                          "([feet.left] joint = ...). Guided and linear retiming work on any skeleton.")
-    return limbs
-
-
-def find_feet(skeleton, feet_names=None) -> dict[str, tuple[int, int]]:
-    """{side: (foot joint, toe joint)} of the skeleton's limbs (:func:`skeleton_limbs`); the toe
-    joint is the foot itself when there is none. ``feet_names`` {side: (foot, toe)} overrides."""
-    if feet_names and all(s in feet_names for s in SIDES):
-        limbs_feet = {}
-    else:
-        limbs_feet = skeleton_limbs(skeleton).feet
-    out = {}
-    for side in SIDES:
-        if feet_names and side in feet_names:
-            foot_name, toe_name = feet_names[side]
-            foot = skeleton.index(foot_name)
-            out[side] = (foot, skeleton.index(toe_name) if toe_name else foot)
-        else:
-            out[side] = limbs_feet[side]
-    return out
 
 
 def _path_up(parents, start, stop):
@@ -398,107 +320,6 @@ def centre_of_mass(body: Body, R, o) -> np.ndarray:
     mass = np.asarray(body.mass, dtype=float)
     world_com = np.einsum("fjab,jb->fja", R, np.asarray(body.com, dtype=float)) + o
     return np.einsum("fja,j->fa", world_com, mass) / max(mass.sum(), 1e-12)
-
-
-def stance_frames(frames, fps, foot: int, toe: int, share=0.05) -> np.ndarray:
-    """Indices of the frames where a foot looks most planted: the ``share`` (5 %, at least one) with
-    the lowest score = ankle height + toe-joint height above their clip minimums + 0.05 s x their
-    speed (averaged over 0.2 s). ``frames`` are world frames (positions (F, J, 3), rotations)."""
-    pos = frames[0]
-    F = len(pos)
-    score = np.zeros(F)
-    width = max(1, min(F, int(round(0.2 * fps))))
-    kernel = np.ones(width) / width
-    for j in {foot, toe}:
-        x = pos[:, j]
-        speed = np.linalg.norm(np.gradient(x, axis=0), axis=1) * fps if F > 1 else np.zeros(F)
-        score += x[:, 1] - x[:, 1].min() + 0.05 * np.convolve(speed, kernel, mode="same")
-    k = max(1, int(round(share * F)))
-    return np.argsort(score, kind="stable")[:k]
-
-
-def _mean_rotation(Rs):
-    U, _, Vt = np.linalg.svd(np.mean(Rs, axis=0))
-    R = U @ Vt
-    if np.linalg.det(R) < 0:
-        U[:, -1] *= -1
-        R = U @ Vt
-    return R
-
-
-SYNTHETIC_FOOT = 0.45  # ankle-to-toe reach of a foot the rig lacks, in shank lengths (about 0.19 m)
-SYNTHETIC_ANKLE = 0.17  # ankle joint above the sole, in shank lengths (about 0.07 m)
-
-
-def _shank_length(skeleton, foot) -> float:
-    return float(np.linalg.norm(skeleton.offsets[foot])) * skeleton.meters_per_unit
-
-
-def _body_forward(skeleton, positions) -> np.ndarray:
-    """Where the body faces in the y-up world, from the thighs: up x forward = left."""
-    legs = skeleton_limbs(skeleton).legs
-    left = np.mean(positions[:, legs["left"][0]] - positions[:, legs["right"][0]], axis=0)
-    fwd = np.cross(left, [0.0, 1.0, 0.0])
-    n = np.linalg.norm(fwd)
-    return fwd / n if n > 0 else np.array([0.0, 0.0, 1.0])
-
-
-def default_foot(skeleton, side, foot, toe, frames=None, fps=None) -> Foot:
-    """Sole corners of one foot (see the module docstring), built in the foot joint's frame. "Up"
-    is the world y axis seen from the foot in the rest pose or, given the motion's world frames (see
-    :func:`world_frames`) and frame rate, averaged over the frames where the foot is most planted
-    (:func:`stance_frames`), so skeletons whose rest pose points the feet down still get a sole
-    under the foot; the toe joint's rotation relative to the foot is averaged the same way."""
-    ends = bone_ends(skeleton)
-    off = skeleton.offsets * skeleton.meters_per_unit
-    if frames is None:
-        up, R_rel = np.array([0.0, 1.0, 0.0]), np.eye(3)
-    else:
-        idx = stance_frames(frames, fps, foot, toe)
-        R = frames[1]
-        up = np.mean(R[idx, foot, 1, :], axis=0)  # world y in the foot frame = row 1 of R
-        up /= np.linalg.norm(up)
-        R_rel = np.eye(3) if toe == foot else _mean_rotation(np.einsum("nji,njk->nik", R[idx, foot], R[idx, toe]))
-    # in the foot frame: ankle A at the origin, toe joint B, toe tip T
-    A = np.zeros(3)
-    B = off[toe] if toe != foot else ends[foot]
-    T = B + R_rel @ ends[toe] if toe != foot else B
-    if np.linalg.norm(T - B) < 1e-6:  # no toe bone: extend the foot by 40 %
-        T = B + 0.4 * (B - A)
-    fwd = T - A - np.dot(T - A, up) * up
-    reach = float(np.linalg.norm(fwd))
-    if reach < 0.2 * _shank_length(skeleton, foot) and frames is not None:
-        # no foot bone along the ground (a rig that ends at the ankle): a foot of typical size,
-        # pointing where the body faces, its sole at a typical ankle height below the joint
-        fwd_world = _body_forward(skeleton, frames[0][idx])
-        fwd = np.mean(np.einsum("nji,j->ni", R[idx, foot], fwd_world), axis=0)
-        fwd -= np.dot(fwd, up) * up
-        if np.linalg.norm(fwd) > 1e-6:
-            shank = _shank_length(skeleton, foot)
-            reach = SYNTHETIC_FOOT * shank
-            B = T = reach * fwd / np.linalg.norm(fwd) - SYNTHETIC_ANKLE * shank * up
-            toe = foot
-            R_rel = np.eye(3)
-            fwd = T - A - np.dot(T - A, up) * up
-    if reach < 1e-3:
-        raise RetimeError(f"the {side} foot ({skeleton.names[foot]}) has no length along the ground; "
-                          "give its sole corners in a body file")
-    fwd /= reach
-    lat = np.cross(fwd, up)
-    heel_back = 0.3 * reach
-    length = reach + heel_back
-    sole = min(np.dot(B, up), np.dot(T, up)) - SOLE_PAD  # height of the sole plane along up
-
-    def on_sole(x):
-        return x + (sole - np.dot(x, up)) * up
-
-    heel_c = on_sole(A - heel_back * fwd)
-    toe_c = on_sole(B + 0.5 * (T - B))
-    heel = np.array([heel_c + s * 0.13 * length * lat for s in (1, -1)])
-    toes = np.array([toe_c + s * 0.19 * length * lat for s in (1, -1)])
-    if toe != foot:
-        toes = (toes - B) @ R_rel  # into the toe joint's frame
-    return Foot(side=side, joint=skeleton.names[foot], toe_joint=skeleton.names[toe], heel=heel, toe=toes)
 
 
 # ---------------------------------------------------------------------------------------------

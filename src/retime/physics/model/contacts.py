@@ -4,19 +4,11 @@ Contact points, in this order everywhere (``CONTACT_POINTS``)::
 
     0 left_heel   1 left_toe   2 right_heel   3 right_toe
 
-Each point is a pair of sole corners (see :class:`retime.physics.model.body.Foot`): the heel's two
+Each point is a pair of sole corners (see :class:`retime.motion.feet.Foot`): the heel's two
 corners ride on the foot joint's body, the toe's two on the toe joint's body.
 
-**Detection** (:func:`detect_contacts`), per point, from the motion's frames: its height is the lower
-of its two corners' heights above that point's floor, and its speed is the speed of the corners'
-midpoint. Heights are first taken above the local floor (:func:`local_floor`: the lowest point
-within +-0.75 s, so a platform or a drifting floor stays a floor). A point's floor is then the 5th
-percentile of that height over the clip, but at most 3 cm above the lowest such floor of all points
-(a point that never touches the ground is not made to). A point
-enters contact when it is below ``h_on`` (3 cm) and slower than ``v_on`` (1 m/s) and leaves it
-when it is above ``h_off`` (5 cm) or faster than ``v_off`` (2 m/s) (hysteresis; a swinging foot
-that skims the floor is much faster, a foot pushing off or landing is slower). Contacts and gaps
-shorter than ``min_frames`` (3) are then removed, in that order.
+**Detection** (:func:`detect_contacts`): :func:`retime.motion.feet.contact_states` on the body's
+sole corners along the path (one detector for every method; thresholds and smoothing there).
 
 **Contact file** (:func:`read_contacts`, CSV, overrides detection entirely)::
 
@@ -42,41 +34,26 @@ from pathlib import Path
 
 import numpy as np
 from numba import njit
-from scipy.ndimage import maximum_filter1d, minimum_filter1d, uniform_filter1d
 
 from ...errors import FormatError, RetimeError
 from ...io_util import atomic_write
+from ...motion.feet import CONTACT_POINTS, contact_states, sole_corners, sole_positions
 from .tree import points_jacobian_transpose, support_rows
 
-CONTACT_POINTS = ("left_heel", "left_toe", "right_heel", "right_toe")
 ALIASES = {"left": (0, 1), "right": (2, 3), "both": (0, 1, 2, 3)}
 EDGES_PER_CORNER = 4
 CORNERS_PER_FOOT = 4
 BASIS_PER_FOOT = EDGES_PER_CORNER * CORNERS_PER_FOOT
 
 
-def _feet_in_order(body):
-    by_side = {f.side: f for f in body.feet}
-    missing = [s for s in ("left", "right") if s not in by_side]
-    if missing:
-        raise RetimeError(f"the body model has no {' and '.join(missing)} foot")
-    return [by_side["left"], by_side["right"]]
-
-
 def corner_bodies(body):
     """(8,) joint names and (8, 3) local positions of the sole corners, in column order."""
-    names, local = [], []
-    for foot in _feet_in_order(body):
-        names += [foot.joint, foot.joint, foot.toe_joint, foot.toe_joint]
-        local += [foot.heel[0], foot.heel[1], foot.toe[0], foot.toe[1]]
-    return names, np.array(local)
+    return sole_corners(body.feet)
 
 
 def corner_positions(body, skeleton, R, o):
     """World positions (n, 8, 3) of the sole corners given world joint frames R (n, J, 3, 3), o (n, J, 3)."""
-    names, local = corner_bodies(body)
-    idx = [skeleton.index(n) for n in names]
-    return o[:, idx] + np.einsum("npij,pj->npi", R[:, idx], local)
+    return sole_positions(body.feet, skeleton, R, o)
 
 
 def friction_edges(mu: float) -> np.ndarray:
@@ -131,90 +108,16 @@ def _edges(jt, E, contact, out):
 # detection
 
 
-def _runs(state, value):
-    """(starts, ends) of the runs of ``value`` in a bool array, ends exclusive."""
-    s = np.concatenate([[False], state == value, [False]])
-    d = np.diff(s.astype(np.int8))
-    return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
-
-
-def _clean(state, min_frames):
-    """Drop runs of contact shorter than min_frames, then fill gaps shorter than min_frames
-    (except gaps at either end of the clip)."""
-    state = np.array(state, dtype=bool)
-    for a, b in zip(*_runs(state, True)):
-        if b - a < min_frames:
-            state[a:b] = False
-    for a, b in zip(*_runs(state, False)):
-        if b - a < min_frames and a > 0 and b < len(state):
-            state[a:b] = True
-    return state
-
-
-def point_tracks(motion, body, frames=None):
-    """Height above its own floor (F, 4) and speed (F, 4) of each contact point, in metres and m/s;
-    ``frames``: the motion's world frames if known (see :func:`retime.physics.model.body.world_frames`)."""
+def detect_contacts(motion, body, h_on=0.03, h_off=0.05, v_on=1.0, v_off=2.0, min_frames=3,
+                    frames=None) -> np.ndarray:
+    """Contact states (F, 4) of the heel and toe of each foot of ``body`` at the motion's frames
+    (:func:`retime.motion.feet.contact_states`); ``frames``: the motion's world frames if known (see
+    :func:`retime.physics.model.body.world_frames`)."""
     from .body import world_frames
 
     pos, R = world_frames(motion) if frames is None else frames
-    x = corner_positions(body, motion.skeleton, R, pos)  # (F, 8, 3)
-    low = np.minimum(x[:, 0::2, 1], x[:, 1::2, 1])  # (F, 4)
-    mid = 0.5 * (x[:, 0::2] + x[:, 1::2])
-    speed = np.linalg.norm(np.gradient(mid, axis=0), axis=-1) * motion.fps
-    return above_own_floor(low, motion.fps), speed
-
-
-def above_own_floor(low, fps):
-    """(F, P) height of each point above its own floor, from its height ``low`` (F, P): above the
-    local floor (:func:`local_floor`), less where the point stands (its 5th percentile, at most 3 cm
-    above the lowest point's: a point that never touches the ground is not made to)."""
-    low = low - local_floor(low, fps)[:, None]
-    floors = np.percentile(low, 5, axis=0)
-    floors = np.minimum(floors, floors.min() + 0.03)
-    return low - floors
-
-
-LOCAL_FLOOR_S = 0.75  # half width of the window the floor is the lowest point of
-
-
-def local_floor(low, fps, half_width=LOCAL_FLOOR_S):
-    """(F,) floor height under the body: the lower envelope of the lowest contact point over windows
-    of +-``half_width`` seconds, so a platform, a slope or a drifting capture floor is still the
-    floor (a jump's flight is far shorter than the window, so its floor is the stance around it)."""
-    lowest = np.min(low, axis=1)
-    size = 2 * max(1, int(round(half_width * fps))) + 1
-    # a morphological opening: the lower envelope, which follows a slope exactly and drops
-    # the raised stretches (flights, steps) shorter than the window
-    floor = maximum_filter1d(minimum_filter1d(lowest, size=size, mode="nearest"), size=size, mode="nearest")
-    return uniform_filter1d(floor, size=max(1, size // 4), mode="nearest")
-
-
-def detect_contacts(motion, body, h_on=0.03, h_off=0.05, v_on=1.0, v_off=2.0, min_frames=3,
-                    frames=None) -> np.ndarray:
-    """Contact states (F, 4) of the heel and toe of each foot at the motion's frames (see module)."""
-    height, speed = point_tracks(motion, body, frames)
-    F = motion.n_frames
-    out = np.zeros((F, 4), dtype=bool)
-    for p in range(4):
-        on = False
-        for i in range(F):
-            if on:
-                on = not (height[i, p] > h_off or speed[i, p] > v_off)
-            else:
-                on = height[i, p] < h_on and speed[i, p] < v_on
-            out[i, p] = on
-        out[:, p] = _clean(out[:, p], min_frames)
-    return out
-
-
-def foot_contacts(motion) -> np.ndarray:
-    """Contact states (F, 4) of the motion's frames exactly as physics detects them (on the motion as it
-    conforms: y up, one floating base, rigid bones; the default body's soles on the smoothed path): what
-    the demo calls a flight (:func:`retime.phases.longest_flight`). Detected on the raw motion, a Z-up
-    file's flight came out seconds away from the one physics reports."""
-    from .dynamics import dynamics_terms
-
-    return dynamics_terms(motion, reference=False).contact
+    return contact_states(corner_positions(body, motion.skeleton, R, pos), motion.fps, h_on=h_on, h_off=h_off,
+                          v_on=v_on, v_off=v_off, min_frames=min_frames)
 
 
 def read_contacts(path, n_frames: int) -> np.ndarray:

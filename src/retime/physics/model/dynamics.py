@@ -50,7 +50,9 @@ from scipy.ndimage import uniform_filter1d
 
 from ...errors import RetimeError
 from ...limits import check_memory
-from .body import Body, centre_of_mass, load_body, skeleton_limbs, skeleton_tree
+from ...motion.conform import bind_pose_frames, conformed
+from ...motion.feet import skeleton_limbs
+from .body import Body, centre_of_mass, load_body, skeleton_tree
 from ..constants import DEFAULT_SMOOTHING, STANDARD_GRAVITY, G
 from .contact_basis import ComputedContactBasis, ContactBasis, as_contact_basis
 from .contacts import (CONTACT_POINTS, EDGES_PER_CORNER, at_samples, compact_contact_basis, corner_jacobians,
@@ -451,48 +453,9 @@ def torque_limits(tree: TreeModel, body: Body | None, tau_ref, margin=None, floo
     return hi
 
 
-def bind_pose_frames(motion, rest_deg=2.0, max_seconds=0.25) -> int:
-    """Leading frames of an exporter's bind pose to leave out of the dynamics (0: none).
-
-    Some BVH exporters (e.g. the Daz-friendly CMU conversions) start with a T-pose frame, every joint
-    rotation near identity (half the joints within 2 degrees), then swing into the motion within a
-    few frames: 90 degrees of arm in 40 ms, which no body does and which low-passing smears over a
-    tenth of a second of dynamics. When frame 0 is such a rest pose and its first step is larger than
-    the 99th percentile of the steps after ``max_seconds``, the frames up to the first step no larger
-    than that are counted."""
-    q = np.asarray(motion.rotations, dtype=float)
-    F = len(q)
-    if F < 8:
-        return 0
-    rest = 2.0 * np.degrees(np.arccos(np.clip(np.abs(q[0, 1:, 3]), 0.0, 1.0)))
-    if rest.size == 0 or np.median(rest) > rest_deg:  # fingers and toes may rest bent
-        return 0
-    step = 2.0 * np.degrees(np.arccos(np.clip(np.abs(np.sum(q[1:] * q[:-1], axis=-1)), 0.0, 1.0))).max(axis=1)
-    window = int(max_seconds * motion.fps)
-    limit = np.percentile(step[min(F - 2, window):], 99)  # the motion's own fastest steps
-    if step[0] <= limit:
-        return 0
-    for f in range(1, min(F - 4, window + 1)):
-        if step[f] <= limit:
-            return f
-    return 0
-
-
 # peak memory of a physics retiming per source frame and joint, with a margin: a 10-minute capture at
 # 120 Hz (72,001 frames, 31 joints) peaks 1.32 GB above its start (benchmarks/scaling.py), 590 bytes
 BYTES_PER_FRAME_JOINT = 1_000
-
-
-def conformed(motion):
-    """The motion as physics sees it (:func:`retime.motion.conform.conform`: y up, one floating
-    base, rigid bones), with a bone stretch too large to make rigid as a RetimeError."""
-    from ...motion.conform import BoneStretch, conform
-
-    try:
-        return conform(motion)
-    except BoneStretch as e:
-        where = f"{motion.skeleton.source}: " if motion.skeleton.source else ""
-        raise RetimeError(f"{where}{e}") from None
 
 
 def dynamics_terms(motion, body=None, samples_per_frame=1, contacts=None, smoothing=DEFAULT_SMOOTHING,

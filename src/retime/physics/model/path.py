@@ -19,9 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
-from scipy.ndimage import gaussian_filter1d
 
 from ...errors import RetimeError
+from ...motion.feet import MIN_FRAMES, lowpass
 from ...motion.quat import continuous
 from .tree import FIXED, FREE
 
@@ -35,17 +35,6 @@ class PathSamples:
     quats: np.ndarray  # (n, nb, 4) local rotations (x, y, z, w), unit
     qd: np.ndarray  # (n, nv) dq/ds
     qdd: np.ndarray  # (n, nv) d2q/ds2
-
-
-def _lowpass(x, sigma_frames):
-    """Gaussian filter along axis 0 with odd reflection about the end samples."""
-    if sigma_frames <= 0:
-        return x
-    pad = min(int(np.ceil(4 * sigma_frames)) + 1, len(x) - 1)
-    head = 2 * x[:1] - x[pad:0:-1]
-    tail = 2 * x[-1:] - x[-2:-pad - 2:-1]
-    padded = np.concatenate([head, x, tail])
-    return gaussian_filter1d(padded, sigma_frames, axis=0, mode="nearest", truncate=4.0)[pad:pad + len(x)]
 
 
 def sample_times(n_frames: int, fps: float, samples_per_frame: int = 1) -> np.ndarray:
@@ -188,12 +177,12 @@ def path_samples(fps, root_pos, quats, jtype, vidx, nv, times=None, smoothing=0.
     (default: the frames), for a tree with joint types ``jtype`` and velocity offsets ``vidx``."""
     quats = np.asarray(quats, dtype=float)
     F, nb = quats.shape[:2]
-    if F < 4:
-        raise RetimeError(f"physics needs at least 4 frames, the motion has {F}")
+    if F < MIN_FRAMES:
+        raise RetimeError(f"physics needs at least {MIN_FRAMES} frames, the motion has {F}")
     times = np.arange(F) / fps if times is None else np.asarray(times, dtype=float)
     root_pos = np.zeros((F, 3)) if root_pos is None else np.asarray(root_pos, dtype=float)
     X = np.concatenate([root_pos, continuous(quats).reshape(F, nb * 4)], axis=1)
-    X = np.ascontiguousarray(_lowpass(X, smoothing * fps))
+    X = np.ascontiguousarray(lowpass(X, smoothing * fps))
     h = 1.0 / fps
     M = _spline_moments(X, h)
     n = len(times)
