@@ -701,7 +701,8 @@ def _bisect_price(count_at, M, lo, hi, top, iterations):
     """Narrow the price range [lo, hi] about the price at which ``count_at`` (a step count that falls
     as the price rises; None where there is no warp) gives M: widened first (doubling) until its ends'
     counts hold M or a price reaches +-top, then ``iterations`` times cut, alternately at the linear
-    guess and in half (the count falls in jumps, so each alone can stall). Returns (lo, hi)."""
+    guess and in half (the count falls in jumps, so each alone can stall). Returns (lo, hi), or
+    (p, p) once a price p gives M."""
     width = hi - lo
     hi_count, lo_count = count_at(hi), None
     while hi_count is not None and hi_count > M and hi < top:
@@ -716,13 +717,18 @@ def _bisect_price(count_at, M, lo, hi, top, iterations):
             width *= 2.0
             lo = hi - width
             lo_count = count_at(lo)
+    for end, count in ((hi, hi_count), (lo, lo_count)):
+        if count == M:
+            return end, end  # (the middle of the range would throw this price away)
     for i in range(int(iterations) if hi_count is not None and lo_count is not None else 0):
         if hi_count >= M or lo_count <= M:
-            break  # an end already gives M steps, or the range could not be widened to hold M
+            break  # the range could not be widened to hold M
         t = (lo_count - M) / (lo_count - hi_count) if i % 2 == 0 else 0.5
         price = lo + (hi - lo) * min(max(t, 0.05), 0.95)
         count = count_at(price)
-        if count is None or count == M:
+        if count == M:
+            return price, price  # (the middle of the range would throw this price away)
+        if count is None:
             break
         if count > M:
             lo, lo_count = price, count
