@@ -610,3 +610,23 @@ def test_price_bisection_keeps_a_price_that_gives_the_step_count():
     lo, hi = st._bisect_price(lambda p: tried.append(p) or count_at(p), 50, -1.0, 1.0, 1e3, 8)
     assert any(count_at(p) == 50 for p in tried)
     assert count_at(0.5 * (lo + hi)) == 50
+
+
+def test_add_pace_matches_the_pace_penalties_table():
+    """The in-place kernel adds pace_penalties' table (its NumPy twin) to the step scores, to the bit,
+    with and without flights."""
+    from retime.guided import steady as st
+
+    rng = np.random.default_rng(4)
+    for trial in range(40):
+        n_fine, fine = int(rng.integers(20, 400)), int(rng.integers(8, 13))
+        kmin, kmax = int(rng.integers(1, 6)), int(rng.integers(8, 50))
+        h = float(rng.uniform(0.05, 0.6))
+        grounded = (rng.uniform(size=int(n_fine * h) + 3) > rng.uniform(0.0, 0.5)).astype(float)
+        args = (grounded, float(rng.uniform(0, 2)), h, n_fine, kmin, kmax, fine, float(rng.uniform(0.5, 2.0)))
+        weight = float(rng.uniform(0.1, 30.0))
+        scores = rng.uniform(0.0, 5.0, size=(n_fine + 1, kmax - kmin + 1))
+        scores[rng.uniform(size=scores.shape) < 0.1] = np.inf
+        want = scores + st.pace_penalties(*args, weight)
+        st._add_pace(scores, *st.pace_targets(*args), weight)
+        assert np.array_equal(scores, want)
