@@ -630,3 +630,20 @@ def test_add_pace_matches_the_pace_penalties_table():
         want = scores + st.pace_penalties(*args, weight)
         st._add_pace(scores, *st.pace_targets(*args), weight)
         assert np.array_equal(scores, want)
+
+
+def test_speed_tables_match_speed_costs_and_change_costs():
+    """The one-pass kernel gives speed_costs' and change_costs' tables (its NumPy twins) to the bit,
+    gaps filled from the nearest row, on tables with unscored triples, whole unscored columns and
+    one speed."""
+    from retime.guided import steady as st
+
+    rng = np.random.default_rng(5)
+    for trial in range(200):
+        n, s = int(rng.integers(1, 30)), int(rng.integers(1, 9))
+        F = rng.uniform(0.0, 4.0, size=(n, s, 8 * ((s + 7) // 8)))
+        F[rng.uniform(size=F.shape) < rng.uniform(0.0, 0.7)] = np.inf
+        if trial % 10 == 0:
+            F[:, :, int(rng.integers(0, s))] = np.inf
+        D, S = st._speed_tables(F)
+        assert np.array_equal(D, st.speed_costs(F)) and np.array_equal(S, st.change_costs(F))

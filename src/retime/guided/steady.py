@@ -71,6 +71,9 @@ DIRECT_STEPS = 12
 DIRECT_PAIRS = 4
 #: at most about this many rows (fine positions) of the step scores set the price search's scale
 SCALE_ROWS = 512
+#: the price search starts within +- this many lam (the change penalty's weight): a step's price is
+#: of its order (V1-V8: -1.5 to 0.6 lam; a wider start costs cuts, a narrower one doublings)
+FIRST_PRICE_WIDTH = 2.0
 #: cuts of the price range of the relaxation without change penalties (the first guess)
 SCORE_PRICE_ITERATIONS = 8
 #: relaxations to find the step price of the search's bound (more until their prices lie on both
@@ -137,6 +140,53 @@ def change_costs(F) -> np.ndarray:
     S[:, :-1][np.isnan(S[:, :-1])] = np.inf
     S[:, -1] = S[:, -2]
     return np.maximum(_fill_gaps(S), 0.0)
+
+
+@njit(cache=True)
+def _fill_column_gaps(T):
+    """:func:`_fill_gaps` in place (its compiled twin): each column's entries that are not finite
+    from the nearest finite row, the earlier of two as near; a column with none is left as it is."""
+    n, m = T.shape
+    before = np.empty(n, dtype=np.int64)  # the last finite row at or above
+    for c in range(m):
+        last = -1
+        for j in range(n):
+            last = j if np.isfinite(T[j, c]) else last
+            before[j] = last
+        if last < 0:
+            continue
+        after = n  # the first finite row at or below (rows below were filled, from finite rows only)
+        for j in range(n - 1, -1, -1):
+            if np.isfinite(T[j, c]):
+                after = j
+                continue
+            b = before[j]
+            T[j, c] = T[b if after == n or (b >= 0 and j - b <= after - j) else after, c]
+
+
+@njit(cache=True)
+def _speed_tables(F):
+    """(:func:`speed_costs`, :func:`change_costs`) of F in one pass, the same sums (their compiled
+    twin: the two NumPy functions, with their gathers and masks, were a tenth of a V1 refinement)."""
+    n, s = F.shape[0], F.shape[1]
+    D = np.empty((n, s))
+    S = np.zeros((n, s))
+    for j in range(n):
+        for v in range(s):
+            D[j, v] = F[j, v, v]
+    _fill_column_gaps(D)
+    if s < 2:
+        return D, S
+    for j in range(n):
+        for c in range(s - 1):
+            x = 0.5 * (F[j, c, c + 1] + F[j, c + 1, c]) - 0.5 * (F[j, c, c] + F[j, c + 1, c + 1])
+            S[j, c] = INF if np.isnan(x) else x
+        S[j, s - 1] = S[j, s - 2]
+    _fill_column_gaps(S)
+    for j in range(n):
+        for c in range(s):
+            S[j, c] = max(S[j, c], 0.0)
+    return D, S
 
 
 def penalty_weight(D, a0: int, a1: int, mean_step: float, steadiness: float) -> float:
@@ -822,7 +872,8 @@ def _supergradients_cross(below, above, M):
     return peak, da + (ca - M) * (peak - pa)
 
 
-def step_price(cost_into, level, rho, kmin, kmax, M, relaxations=RELAXATIONS, tolerance=PRICE_TOLERANCE):
+def step_price(cost_into, level, rho, kmin, kmax, M, relaxations=RELAXATIONS, tolerance=PRICE_TOLERANCE,
+               first_width=None):
     """The step price of :func:`_priced_to_go` whose bound is best (its dual value, the relaxation's
     least cost less price M, is the largest; at most the optimum whatever the price). The price at
     which the relaxation without change penalties (:func:`_priced_scores`, K times cheaper) takes M
@@ -834,7 +885,8 @@ def step_price(cost_into, level, rho, kmin, kmax, M, relaxations=RELAXATIONS, to
     scale) of the most it can reach. Returns (prices (R,), their bounds B (R, n_fine + 1, K): the
     best price's, and the nearest price's on the other side of M steps (its bound is the larger
     where a state has too few steps left for its position, or too many), the best relaxation's warp
-    as fine positions or None if it has no finite cost, the dual value (-inf if none), the scale)."""
+    as fine positions or None if it has no finite cost, the dual value (-inf if none), the scale).
+    ``first_width``: the scores' price search starts within +-first_width (default: the scale's)."""
     # the scale from evenly spaced rows (it sets where the price search starts and how close it
     # must come, not what is optimal; the whole table's median took a fifth of a V1 refinement)
     median, largest = _finite_median_max(np.ascontiguousarray(cost_into[::max(1, len(cost_into) // SCALE_ROWS)]))
@@ -847,7 +899,8 @@ def step_price(cost_into, level, rho, kmin, kmax, M, relaxations=RELAXATIONS, to
         total, count = _priced_scores(ahead, kmin, kmax, price)
         return int(count) if np.isfinite(total) else None
 
-    lo, hi = _bisect_price(scores_count, M, -width, width, top, SCORE_PRICE_ITERATIONS)
+    start = width if first_width is None else first_width
+    lo, hi = _bisect_price(scores_count, M, -start, start, top, SCORE_PRICE_ITERATIONS)
     price = 0.5 * (lo + hi)
     spread = 0.25 * abs(price) + 0.01 * width
 
@@ -1002,7 +1055,8 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, grounded,
     # a band searched in corridors needs the relaxation's warp as their centre: at the price where
     # it takes M steps it is the optimum, so the price search goes on to that price
     prices, to_go, priced_path, dual, scale = step_price(cost_into, level, rho, kmin, kmax, M,
-                                                         *((WIDE_RELAXATIONS, 0.0) if wide else ()))
+                                                         *((WIDE_RELAXATIONS, 0.0) if wide else ()),
+                                                         first_width=FIRST_PRICE_WIDTH * lam)
     # a relaxation's warp with M steps is optimal: its objective is the dual value
     exact_price = priced_path is not None and len(priced_path) == M + 1
 
@@ -1052,8 +1106,7 @@ def steady_warp(F, frames, fixed_positions, steadiness: float, natural=1.0,
     timed the objective without the pull)."""
     frames = np.asarray(frames, dtype=np.int64)
     m = len(frames)
-    D = speed_costs(np.asarray(F))
-    S = change_costs(np.asarray(F))
+    D, S = _speed_tables(np.ascontiguousarray(F, dtype=np.float64))
     cuts = sorted({0, m - 1, *[int(p) for p in fixed_positions if 0 <= int(p) < m]})
     natural = np.broadcast_to(np.asarray(natural, dtype=float), (m,))
     out = np.empty(m)
