@@ -937,7 +937,8 @@ def step_price(cost_into, level, rho, kmin, kmax, M, relaxations=RELAXATIONS, to
     prices = [best[1]]
     other = [h for h in _nearest_either_side(history, M) if h is not None and (h[1] - M) * (best[2] - M) < 0]
     prices += [other[0][0]] if other else []
-    return np.array(prices), np.stack([bounds[x] for x in prices]), best[3], best[0], scale
+    to_go = bounds[best[1]][None] if len(prices) == 1 else np.stack([bounds[x] for x in prices])  # (no copy of one)
+    return np.array(prices), to_go, best[3], best[0], scale
 
 
 def step_range(N, M, L, s):
