@@ -70,7 +70,7 @@ DIRECT_STEPS = 12
 #: many times the step choices (the monotone search reads about K log K)
 DIRECT_PAIRS = 4
 #: at most about this many rows (fine positions) of the step scores set the price search's scale
-SCALE_ROWS = 512
+SCALE_ROWS = 128
 #: the price search starts within +- this many lam (the change penalty's weight): a step's price is
 #: of its order (V1-V8: -1.5 to 0.6 lam; a wider start costs cuts, a narrower one doublings)
 FIRST_PRICE_WIDTH = 2.0
