@@ -417,11 +417,13 @@ def _priced_to_go(ahead, level, rho, kmin, kmax, price):
     least cost, its number of steps and its fine positions. Any warp of the segment that is at q
     after p of its M steps, last step kmin + a, costs at least B[q, a] - price (M - p) from there.
 
-    The minimum over the next step reads every (last step, next step) pair, four next steps at a
-    time, so that the inner loop runs over the last steps without a reduction (the compiler
-    vectorises it): K^2 entries, but faster here than the monotone search's K log K, whose
-    bookkeeping does not vectorise. Each entry is the sum :func:`_first_min` forms and a minimum is
-    exact in any order, so B is the same to the bit.
+    The minimum over the next step reads, for every last step, only the next steps that can still
+    lower some entry (after the same step and the cheapest one, a next step whose cost is not below
+    the largest entry cannot: the change penalties are >= 0; about a quarter of them on V1), four at
+    a time, so that the inner loop runs over the last steps without a reduction (the compiler
+    vectorises it): faster here than the monotone search's K log K, whose bookkeeping does not
+    vectorise. Each entry is the sum :func:`_first_min` forms and a minimum is exact in any order,
+    so B is the same to the bit as reading every pair.
     No table of choices is kept: the best warp is traced forward afterwards, each step the first
     whose entry equals B (the monotone search's choice)."""
     n_fine = ahead.shape[0] - 1
