@@ -647,3 +647,30 @@ def test_speed_tables_match_speed_costs_and_change_costs():
             F[:, :, int(rng.integers(0, s))] = np.inf
         D, S = st._speed_tables(F)
         assert np.array_equal(D, st.speed_costs(F)) and np.array_equal(S, st.change_costs(F))
+
+
+def test_a_relaxation_warp_with_the_step_count_is_the_optimum(jump):
+    """The refinement returns the best price's relaxation warp without a search when it takes exactly
+    the segment's step count (it is then optimal): it is the plain twin's warp, and path_objective
+    sums a warp as the search does (the search's objective to the bit)."""
+    from retime.guided import steady as st
+
+    cases = [_real_segment(jump, scale) for scale in (0.6, 1.5)]
+    for seed in range(6):
+        t = _tiny_segment(np.random.default_rng(300 + seed), n=40, s=5, M=14)
+        cases.append((*t["tables"], t["lo"], t["hi"], t["kmin"], t["kmax"]))
+    exact = 0
+    for args in cases:
+        cost_into, level, rho, lo, hi, kmin, kmax = args
+        q_np, obj_np = st.segment_dp_numpy(*args)
+        for width in (None, 1.0):  # the scale's first price range, and a narrow one
+            prices, to_go, path, dual, _ = st.step_price(cost_into, level, rho, kmin, kmax, len(lo) - 1,
+                                                         first_width=width)
+            q, obj = st._segment_dp(*args, to_go, prices, np.inf)
+            assert st.path_objective(cost_into, level, rho, q, kmin) == obj
+            if path is not None and len(path) == len(lo):
+                exact += 1
+                assert np.array_equal(path, q_np) and np.array_equal(path, q)
+                assert st.path_objective(cost_into, level, rho, path, kmin) == obj
+                assert obj == pytest.approx(obj_np, rel=1e-12) and dual == pytest.approx(obj, rel=1e-12)
+    assert exact >= 4

@@ -995,6 +995,21 @@ def bounded_search(cost_into, level, rho, lo, hi, kmin, kmax, to_go, prices, dua
     return solve(known)
 
 
+def path_objective(cost_into, level, rho, q, kmin):
+    """The steady objective of the warp at fine positions ``q`` (from 0, steps of kmin + b points),
+    summed in the order :func:`_segment_dp` sums it (each step's change, then its score), so that
+    the same warp gives the same value to the bit."""
+    b = np.diff(q) - kmin  # each step's column
+    n = len(b)
+    at = level[q[1:-1]]  # the levels where each change happens
+    terms = np.empty(3 * n - 2)
+    terms[0] = cost_into[q[1], b[0]]
+    terms[1::3] = rho[b[1:], b[:-1]]
+    terms[2::3] = np.abs(at[np.arange(n - 1), b[1:]] - at[np.arange(n - 1), b[:-1]])
+    terms[3::3] = cost_into[q[2:], b[1:]]
+    return float(np.add.accumulate(terms)[-1])  # left to right, as the search adds
+
+
 def pace_penalties(grounded, a0, h, n_fine, kmin, kmax, fine, natural, weight):
     """(n_fine + 1, K) ``weight`` (log(k / k*))^2 for the step of k fine points that ends at q: a
     strictly convex pull towards one steady step k* where grid time a0 + q h is on the ground
@@ -1074,7 +1089,11 @@ def _refine_segment(D, S, y, a0, a1, s, steadiness, natural, corridor, grounded,
         return None if np.any(blo > bhi) else (blo, bhi)
 
     if not wide:
-        q, obj = solve_bounded(lo, hi)
+        if exact_price:  # the relaxation's warp is the optimum: no search needed
+            q = priced_path
+            obj = path_objective(cost_into, level, rho, q, kmin)
+        else:
+            q, obj = solve_bounded(lo, hi)
         return (a0 + q * h, float(obj)) if np.isfinite(obj) else (None, math.inf)
     # a band too wide to search at once: corridors, the first about the relaxation's warp (stretched
     # to M steps: at the best price its step count is M or near it), else the whole-frame warp's
