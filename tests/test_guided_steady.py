@@ -595,3 +595,82 @@ def test_fill_gaps_takes_the_nearest_finite_row():
                 if ok.size and not np.isfinite(D[j, c]):
                     want[j, c] = D[ok[np.argmin(np.abs(ok - j))], c]  # argmin: the first, the earlier
         assert np.array_equal(st._fill_gaps(D.copy()), want)
+
+
+def test_price_bisection_keeps_a_price_that_gives_the_step_count():
+    """A cut that lands on a price giving exactly M steps ends the bisection there (the middle of
+    the range it had narrowed would be far from it: the relaxations started 14 times further off
+    on V1 and needed five instead of one)."""
+    from retime.guided import steady as st
+
+    def count_at(price):  # falls as the price rises; M = 50 steps for prices in (4.9, 5.0]
+        return int(np.floor(100.0 - 10.0 * price))
+
+    tried = []
+    lo, hi = st._bisect_price(lambda p: tried.append(p) or count_at(p), 50, -1.0, 1.0, 1e3, 8)
+    assert any(count_at(p) == 50 for p in tried)
+    assert count_at(0.5 * (lo + hi)) == 50
+
+
+def test_add_pace_matches_the_pace_penalties_table():
+    """The in-place kernel adds pace_penalties' table (its NumPy twin) to the step scores, to the bit,
+    with and without flights."""
+    from retime.guided import steady as st
+
+    rng = np.random.default_rng(4)
+    for trial in range(40):
+        n_fine, fine = int(rng.integers(20, 400)), int(rng.integers(8, 13))
+        kmin, kmax = int(rng.integers(1, 6)), int(rng.integers(8, 50))
+        h = float(rng.uniform(0.05, 0.6))
+        grounded = (rng.uniform(size=int(n_fine * h) + 3) > rng.uniform(0.0, 0.5)).astype(float)
+        args = (grounded, float(rng.uniform(0, 2)), h, n_fine, kmin, kmax, fine, float(rng.uniform(0.5, 2.0)))
+        weight = float(rng.uniform(0.1, 30.0))
+        scores = rng.uniform(0.0, 5.0, size=(n_fine + 1, kmax - kmin + 1))
+        scores[rng.uniform(size=scores.shape) < 0.1] = np.inf
+        want = scores + st.pace_penalties(*args, weight)
+        st._add_pace(scores, *st.pace_targets(*args), weight)
+        assert np.array_equal(scores, want)
+
+
+def test_speed_tables_match_speed_costs_and_change_costs():
+    """The one-pass kernel gives speed_costs' and change_costs' tables (its NumPy twins) to the bit,
+    gaps filled from the nearest row, on tables with unscored triples, whole unscored columns and
+    one speed."""
+    from retime.guided import steady as st
+
+    rng = np.random.default_rng(5)
+    for trial in range(200):
+        n, s = int(rng.integers(1, 30)), int(rng.integers(1, 9))
+        F = rng.uniform(0.0, 4.0, size=(n, s, 8 * ((s + 7) // 8)))
+        F[rng.uniform(size=F.shape) < rng.uniform(0.0, 0.7)] = np.inf
+        if trial % 10 == 0:
+            F[:, :, int(rng.integers(0, s))] = np.inf
+        D, S = st._speed_tables(F)
+        assert np.array_equal(D, st.speed_costs(F)) and np.array_equal(S, st.change_costs(F))
+
+
+def test_a_relaxation_warp_with_the_step_count_is_the_optimum(jump):
+    """The refinement returns the best price's relaxation warp without a search when it takes exactly
+    the segment's step count (it is then optimal): it is the plain twin's warp, and path_objective
+    sums a warp as the search does (the search's objective to the bit)."""
+    from retime.guided import steady as st
+
+    cases = [_real_segment(jump, scale) for scale in (0.6, 1.5)]
+    for seed in range(6):
+        t = _tiny_segment(np.random.default_rng(300 + seed), n=40, s=5, M=14)
+        cases.append((*t["tables"], t["lo"], t["hi"], t["kmin"], t["kmax"]))
+    exact = 0
+    for args in cases:
+        cost_into, level, rho, lo, hi, kmin, kmax = args
+        q_np, obj_np = st.segment_dp_numpy(*args)
+        for width in (None, 1.0):  # the scale's first price range, and a narrow one
+            prices, to_go, path, dual, _ = st.step_price(cost_into, level, rho, kmin, kmax, len(lo) - 1,
+                                                         first_width=width)
+            q, obj = st._segment_dp(*args, to_go, prices, np.inf)
+            assert st.path_objective(cost_into, level, rho, q, kmin) == obj
+            if path is not None and len(path) == len(lo):
+                exact += 1
+                assert np.array_equal(path, q_np) and np.array_equal(path, q)
+                assert st.path_objective(cost_into, level, rho, path, kmin) == obj
+                assert obj == pytest.approx(obj_np, rel=1e-12) and dual == pytest.approx(obj, rel=1e-12)
+    assert exact >= 4
