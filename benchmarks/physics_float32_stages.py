@@ -10,10 +10,12 @@ relative; a stage whose change is orders of magnitude above its inputs' amplifie
 
     python3 benchmarks/physics_float32_stages.py                     # 16_33, 02_04
     python3 benchmarks/physics_float32_stages.py CLIP.bvh ... --scale 0.5 --no-solve
+    python3 benchmarks/physics_float32_stages.py CLIP.bvh --perturb 1e-9   # the optimizer's share
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import tempfile
 from pathlib import Path
@@ -63,7 +65,7 @@ def polygons(regions):
     return np.diff(regions.offsets)
 
 
-def stages(motion_a, motion_b, scale, solve):
+def stages(motion_a, motion_b, scale, solve, perturb=0.0):
     fps = motion_a.fps
     s = Settings()
     spf = s.samples_per_frame
@@ -154,6 +156,18 @@ def stages(motion_a, motion_b, scale, solve):
     k = int(np.argmax(np.abs(fa_ - fb_)))
     line("final timing (source frames)", float(np.abs(fa_ - fb_)[k] * fps), k,
          f"(output frame) objective {ia.objective:.9g} / {ib.objective:.9g}")
+    if perturb:
+        # the optimizer's own amplification: the original's problem, its torque coefficients moved
+        # by a relative ``perturb`` (no rounding of the input at all)
+        rng = np.random.default_rng(0)
+        wc = oa.arrays.wc * (1.0 + perturb * rng.standard_normal(oa.arrays.wc.shape))
+        pc = make_problem(dataclasses.replace(oa, arrays=oa.arrays._replace(wc=wc)), motion_a.duration, T)
+        sc = RetimingSession(pc, optimizer=s.optimizer, fps=fps)
+        ic = sc.reconverge(max_iter=s.max_iter, tol=1e-9)
+        fc = sc.spline(t, sc.spline.w)
+        k = int(np.argmax(np.abs(fa_ - fc)))
+        line(f"final timing, wc x (1 + {perturb:g} N(0,1))", float(np.abs(fa_ - fc)[k] * fps), k,
+             f"(output frame) objective {ia.objective:.9g} / {ic.objective:.9g}")
 
 
 def main(argv=None):
@@ -161,6 +175,8 @@ def main(argv=None):
     ap.add_argument("clips", nargs="*")
     ap.add_argument("--scale", type=float, default=0.5)
     ap.add_argument("--no-solve", action="store_true", help="stop before the optimizer")
+    ap.add_argument("--perturb", type=float, default=0.0,
+                    help="also solve the original with its torque coefficients moved by this relative noise")
     args = ap.parse_args(argv)
     for c in args.clips or DEFAULT_CLIPS:
         with tempfile.TemporaryDirectory() as tmp:
@@ -168,7 +184,7 @@ def main(argv=None):
             save_motion(load_motion(c), src)
             float32_copy(src, f32)
             print(f"{Path(c).name}: change of the float32 copy, relative to each stage's size", flush=True)
-            stages(load_motion(src), load_motion(f32), args.scale, not args.no_solve)
+            stages(load_motion(src), load_motion(f32), args.scale, not args.no_solve, args.perturb)
     return 0
 
 
