@@ -47,13 +47,13 @@ class RegionOptions:
     # median 1.7%, at most 2.4%) while forces move by at most this times a change of the cost per newton
     # (float32 rounding: 1e-7 body weights, against half a body weight for the plain LP's vertex)
     force_spread: float = 1.0
-    # the polygon vertices' forces: the walk's own (one corner of a face of valid forces, which moves
-    # with float rounding: up to 1.2 body weights on a float32 copy), or the regularised least force
-    # at each vertex (forces.unique_vertex_forces: unique, moves <= 1e-4 of its size). Off: a float32
-    # copy's timing then moved less on jesse_dance (2.42 -> 0.04 source frames) and 16_15 (0.61 ->
-    # 0.14) but more on 16_16 (0.014 -> 0.43), 16_33 (0.00 -> 0.46), AV_8Walk (1.25 -> 2.8): nearby
-    # minima still pick the answer (benchmarks/physics_float32_stages.py), and the regions took ~3x as long
-    unique_vertex_forces: bool = False
+    # the polygon vertices' forces: the regularised least force at each vertex
+    # (forces.unique_vertex_forces: unique, a float32 copy moves them <= 1e-4 of their size), or, off,
+    # the walk's own (one corner of a face of valid forces, moved by up to 1.2 body weights). On 13
+    # clips at half duration a float32 copy's timing moved a median 0.08 source frames, against 0.37
+    # with the walk's (7 of 13 within 0.1, was 5; 16_16 0.014 -> 0.43 and AV_8Walk 1.2 -> 2.8 moved
+    # more: nearby minima). The regions take ~2.5x as long.
+    unique_vertex_forces: bool = True
     workers: int | None = None  # processes for many frames (default: all cores, at most 2)
 
 
