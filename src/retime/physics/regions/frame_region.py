@@ -49,10 +49,10 @@ class RegionOptions:
     force_spread: float = 1.0
     # the polygon vertices' forces: the regularised least force at each vertex
     # (forces.unique_vertex_forces: unique, a float32 copy moves them <= 1e-4 of their size), or, off,
-    # the walk's own (one corner of a face of valid forces, moved by up to 1.2 body weights). On 13
-    # clips at half duration a float32 copy's timing moved a median 0.08 source frames, against 0.37
-    # with the walk's (7 of 13 within 0.1, was 5; 16_16 0.014 -> 0.43 and AV_8Walk 1.2 -> 2.8 moved
-    # more: nearby minima). The regions take ~2.5x as long.
+    # the walk's own (one corner of a face of valid forces, moved by up to 1.2 body weights). On 33
+    # clips at half duration a float32 copy's timing moved a median 0.074 source frames, against 0.16
+    # with the walk's (19 within 0.1, was 15; 16_16 0.014 -> 0.43 and AV_8Walk 1.2 -> 2.8 moved
+    # more: nearby minima; README). The regions take ~2.5x as long.
     unique_vertex_forces: bool = True
     workers: int | None = None  # processes for many frames (default: all cores, at most 2)
 
