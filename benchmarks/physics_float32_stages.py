@@ -66,7 +66,7 @@ def polygons(regions):
     return np.diff(regions.offsets)
 
 
-def stages(motion_a, motion_b, scale, solve, perturb=0.0, walk_vertex_forces=False):
+def stages(motion_a, motion_b, scale, solve, perturb=0.0, unique_vertex_forces=False):
     fps = motion_a.fps
     s = Settings()
     spf = s.samples_per_frame
@@ -96,11 +96,10 @@ def stages(motion_a, motion_b, scale, solve, perturb=0.0, walk_vertex_forces=Fal
     line("reference forces lambda_ref", rel, k)
 
     settings = s
-    def options():
-        return RegionOptions(unique_vertex_forces=False) if walk_vertex_forces else RegionOptions()
-
-    _, pda, ra, oa = prepare(motion_a, terms=ta, settings=settings, region_options=options())
-    _, pdb, rb, ob = prepare(motion_b, terms=tb, settings=settings, region_options=options())
+    _, pda, ra, oa = prepare(motion_a, terms=ta, settings=settings,
+                             region_options=RegionOptions(unique_vertex_forces=unique_vertex_forces))
+    _, pdb, rb, ob = prepare(motion_b, terms=tb, settings=settings,
+                             region_options=RegionOptions(unique_vertex_forces=unique_vertex_forces))
     for name in ("a", "b", "c", "b_noise"):
         line(f"path dynamics {name}", *change(getattr(pda, name), getattr(pdb, name)))
     line("regions: budget (source residual)", *change(ra.budget, rb.budget))
@@ -181,8 +180,8 @@ def main(argv=None):
     ap.add_argument("--no-solve", action="store_true", help="stop before the optimizer")
     ap.add_argument("--perturb", type=float, default=0.0,
                     help="also solve the original with its torque coefficients moved by this relative noise")
-    ap.add_argument("--walk-vertex-forces", action="store_true",
-                    help="the regions' vertex forces as the walk found them (RegionOptions.unique_vertex_forces off)")
+    ap.add_argument("--unique-vertex-forces", action="store_true",
+                    help="the regions' vertex forces made unique (RegionOptions.unique_vertex_forces)")
     args = ap.parse_args(argv)
     for c in args.clips or DEFAULT_CLIPS:
         with tempfile.TemporaryDirectory() as tmp:
@@ -191,7 +190,7 @@ def main(argv=None):
             float32_copy(src, f32)
             print(f"{Path(c).name}: change of the float32 copy, relative to each stage's size", flush=True)
             stages(load_motion(src), load_motion(f32), args.scale, not args.no_solve, args.perturb,
-                   args.walk_vertex_forces)
+                   args.unique_vertex_forces)
     return 0
 
 

@@ -43,8 +43,7 @@ def test_lambda_at_vertices_is_the_lps(jump):
 
 def _feasible(pd, rs, k, i, u, v, lam):
     tau = pd.a[i] * u + pd.b[i] * v + pd.c[i] - pd.N[i] @ lam
-    # the unique vertex forces hold their rows to twice VERTEX_SLACK body weights (see there)
-    tol = 1e-6 * (1 + np.abs(tau)) + 2 * F.VERTEX_SLACK * rs.options.force_spread * rs.body_weight
+    tol = 1e-6 * (1 + np.abs(tau))
     return (np.all(lam >= -1e-9) and np.all(tau >= rs.lo[k] - rs.budget[k] * v - tol)
             and np.all(tau <= rs.hi[k] + rs.budget[k] * v + tol))
 
@@ -224,9 +223,8 @@ def test_vertex_forces_are_unique_on_a_degenerate_face():
     P, L = fr.verts, fr.lam
     assert len(P) >= 3
     assert np.abs(L[:, :16] - L[:, 16:]).max() <= 1e-6 * bw
-    walk = R.RegionOptions(workers=1, unique_vertex_forces=False)
-    walked = frame_region(a, b, c, N, lo, hi, walk, bw, 6, budget=np.zeros(6)).lam
-    assert np.abs(walked[:, :16] - walked[:, 16:]).max() >= 0.05 * bw  # the walk's corner leans
+    walked = frame_region(a, b, c, N, lo, hi, R.RegionOptions(workers=1), bw, 6, budget=np.zeros(6)).lam
+    assert np.abs(walked[:, :16] - walked[:, 16:]).max() >= 0.05 * bw  # the default: the walk's corner
     lp = _frame_lp(a, b, c, N, lo, hi, np.zeros(6), np.arange(32), np.arange(6), opts, HighsPool())
     w = F.force_weights(N[:3], 6)
     slack = F.VERTEX_SLACK * spread
@@ -242,9 +240,8 @@ def test_vertex_forces_are_unique_on_a_degenerate_face():
 def test_vertex_forces_of_a_float32_copy_match(tmp_path):
     """Issue 24: the contact forces at the polygons' vertices of a float32 copy of CMU 16_33 (every
     channel rounded to float32, written, read back) equal the original's to 1e-4 body weights.
-    With the walk's own lambda (unique_vertex_forces off) they move by up to 0.67 body weights
-    (frame 83), and the torque coefficients baked from them by 2.4 times their size
-    (benchmarks/physics_float32_stages.py)."""
+    With the walk's own lambda (the default) they move by up to 0.67 body weights (frame 83), and the
+    torque coefficients baked from them by 2.4 times their size (benchmarks/physics_float32_stages.py)."""
     sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "benchmarks"))
     from physics_converge import float32_copy
 

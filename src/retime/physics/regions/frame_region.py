@@ -47,13 +47,14 @@ class RegionOptions:
     # median 1.7%, at most 2.4%) while forces move by at most this times a change of the cost per newton
     # (float32 rounding: 1e-7 body weights, against half a body weight for the plain LP's vertex)
     force_spread: float = 1.0
-    # the polygon vertices' forces: the regularised least force at each vertex
-    # (forces.unique_vertex_forces: unique, a float32 copy moves them <= 1e-4 of their size), or, off,
-    # the walk's own (one corner of a face of valid forces, moved by up to 1.2 body weights). On 33
-    # clips at half duration a float32 copy's timing moved a median 0.074 source frames, against 0.16
-    # with the walk's (19 within 0.1, was 15; 16_16 0.014 -> 0.43 and AV_8Walk 1.2 -> 2.8 moved
-    # more: nearby minima; README). The regions take ~2.5x as long.
-    unique_vertex_forces: bool = True
+    # the polygon vertices' forces: the walk's own (one corner of a face of valid forces, which moves
+    # with float rounding: up to 1.2 body weights on a float32 copy), or the regularised least force
+    # at each vertex (forces.unique_vertex_forces: unique, moves <= 1e-4 of its size). On, a float32
+    # copy's timing is within 0.1 source frame on 19 of 33 clips (15 off), median 0.074 (0.16), but
+    # 16_16 0.014 -> 0.43 and AV_8Walk 1.2 -> 2.8 (nearby minima; README), and Fig. 12's Feasible
+    # stage costs 3x (16_16 0.50 -> 1.51 ms a frame, over issue 4's 1 ms for Force + Feasible + Bake):
+    # off until the vertex solves are cheaper
+    unique_vertex_forces: bool = False
     workers: int | None = None  # processes for many frames (default: all cores, at most 2)
 
 
