@@ -22,6 +22,7 @@ is not above today's.
 
     python3 benchmarks/physics_converge.py                      # the bundled CMU clips
     python3 benchmarks/physics_converge.py CLIP.amc ... --method lbfgs
+    python3 benchmarks/physics_converge.py CLIP.amc ... --unique-vertex-forces  # RegionOptions.unique_vertex_forces
 """
 from __future__ import annotations
 
@@ -37,6 +38,7 @@ from retime.motion import load_motion
 from retime.motion.files import save_motion
 from retime.errors import RetimeError
 from retime.physics.api import make_problem, physics_warp
+from retime.physics.regions import RegionOptions
 from retime.physics.timing.objective import evaluate_c
 from retime.physics.timing.optimize import solve
 
@@ -118,7 +120,7 @@ def force_change(a, b):
     return centre / ra.body_weight, vertex / ra.body_weight
 
 
-def run(path, scale, kw, tmp):
+def run(path, scale, kw, tmp, unique_vertex_forces=False):
     src = Path(tmp) / "orig.bvh"
     save_motion(load_motion(path), src)
     f32 = Path(tmp) / "f32.bvh"
@@ -127,7 +129,7 @@ def run(path, scale, kw, tmp):
     for p in (src, f32):
         m = load_motion(p)
         t0 = time.perf_counter()
-        r = physics_warp(m, scale=scale, **kw)
+        r = physics_warp(m, scale=scale, region_options=RegionOptions(unique_vertex_forces=unique_vertex_forces), **kw)
         out.append((m, r, time.perf_counter() - t0))
     (m, a, ta), (_, b, tb) = out
     T = min(a.spline.duration, b.spline.duration)
@@ -147,6 +149,8 @@ def main(argv=None):
     ap.add_argument("--method", default=None, help="optimizer (default: physics' own)")
     ap.add_argument("--starts", type=int, default=0, help="also this many runs from perturbed starts")
     ap.add_argument("--no-today", action="store_true", help="skip the comparison with the pipeline before issue 24")
+    ap.add_argument("--unique-vertex-forces", action="store_true",
+                    help="the regions' vertex forces made unique (RegionOptions.unique_vertex_forces)")
     args = ap.parse_args(argv)
     clips = args.clips or sorted(str(p) for p in BUNDLED.glob("*") if p.suffix in (".amc", ".bvh"))
     kw = {} if args.method is None else {"optimizer": args.method}
@@ -155,7 +159,7 @@ def main(argv=None):
     for c in clips:
         with tempfile.TemporaryDirectory() as tmp:
             try:
-                moved, ia, ib, sec, nk, (m, a), same, forces = run(c, args.scale, kw, tmp)
+                moved, ia, ib, sec, nk, (m, a), same, forces = run(c, args.scale, kw, tmp, args.unique_vertex_forces)
             except RetimeError as e:  # a clip physics refuses: say so, go on
                 print(f"{Path(c).name:14s} refused: {str(e).splitlines()[0][:80]}")
                 continue

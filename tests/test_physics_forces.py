@@ -206,3 +206,62 @@ def test_centre_forces_of_a_real_frame_match_scipy(jump):
         assert np.abs(ref - lam).max() <= 1e-7 * bw
         checked += 1
     assert checked >= 4
+
+
+def test_vertex_forces_are_unique_on_a_degenerate_face():
+    """Two feet with identical basis forces: at every vertex of the frame's polygon the forces are
+    the regularised least force on the vertex's rows (SciPy's SLSQP on the same rows, widened by
+    the vertex slack), so the load splits equally between the feet. The walk's own lambda at a
+    vertex is one corner of the face of valid forces: it leans on one foot."""
+    from retime.physics.regions.frame_region import _frame_lp, frame_region
+    from retime.physics.regions.highs_lp import HighsPool
+
+    a, b, c, N, lo, hi, bw = _two_identical_feet()
+    opts = R.RegionOptions(workers=1, unique_vertex_forces=True)
+    spread = opts.force_spread * bw
+    fr = frame_region(a, b, c, N, lo, hi, opts, bw, 6, budget=np.zeros(6))
+    P, L = fr.verts, fr.lam
+    assert len(P) >= 3
+    assert np.abs(L[:, :16] - L[:, 16:]).max() <= 1e-6 * bw
+    walked = frame_region(a, b, c, N, lo, hi, R.RegionOptions(workers=1), bw, 6, budget=np.zeros(6)).lam
+    assert np.abs(walked[:, :16] - walked[:, 16:]).max() >= 0.05 * bw  # the default: the walk's corner
+    lp = _frame_lp(a, b, c, N, lo, hi, np.zeros(6), np.arange(32), np.arange(6), opts, HighsPool())
+    w = F.force_weights(N[:3], 6)
+    slack = F.VERTEX_SLACK * spread
+    for (u, v), lam in zip(P, L):
+        shift = lp.A[:, 0] * u + lp.A[:, 1] * v
+        ref = _regularised_by_scipy(w, lp.A[:, 2:], lp.row_lo - shift - slack, lp.row_hi - shift + slack, spread)
+        assert np.abs(ref - lam).max() <= 1e-6 * bw
+        rows = lp.A[:, 2:] @ lam  # valid at the vertex to twice the slack (see VERTEX_SLACK)
+        assert np.all(lam >= 0) and np.all(rows >= lp.row_lo - shift - 2 * slack)
+        assert np.all(rows <= lp.row_hi - shift + 2 * slack)
+
+
+def test_vertex_forces_of_a_float32_copy_match(tmp_path):
+    """Issue 24: the contact forces at the polygons' vertices of a float32 copy of CMU 16_33 (every
+    channel rounded to float32, written, read back) equal the original's to 1e-4 body weights.
+    With the walk's own lambda (the default) they move by up to 0.67 body weights (frame 83), and the
+    torque coefficients baked from them by 2.4 times their size (benchmarks/physics_float32_stages.py)."""
+    sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "benchmarks"))
+    from physics_converge import float32_copy
+
+    from retime.motion import load_motion
+    from retime.motion.files import save_motion
+    from retime.physics.constants import G
+    from retime.physics.model.dynamics import dynamics_terms
+
+    clip = os.path.join(os.path.dirname(__file__), "..", "src", "retime", "data", "cmu", "16_33.amc")
+    save_motion(load_motion(clip), tmp_path / "orig.bvh")
+    float32_copy(tmp_path / "orig.bvh", tmp_path / "f32.bvh")
+    sets = []
+    for name in ("orig.bvh", "f32.bvh"):
+        pd = dynamics_terms(load_motion(tmp_path / name)).combine()
+        opts = R.RegionOptions(workers=1, body_weight=float(pd.total_mass) * G, v_max=64.0, unique_vertex_forces=True)
+        sets.append(R.compute_regions(pd, opts, frames=np.arange(0, 100)))
+    ra, rb = sets
+    moved = 0.0
+    for i in range(ra.n_frames):
+        assert ra.polygon(i).shape == rb.polygon(i).shape
+        if ra.polygon_lam(i).size:
+            moved = max(moved, float(np.abs(ra.polygon_lam(i) - rb.polygon_lam(i)).max()))
+    assert moved <= 1e-4 * ra.body_weight

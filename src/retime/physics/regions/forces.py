@@ -1,7 +1,8 @@
 """Contact forces for retimed motion (McCann et al. 2006, sec. 3.4, Fig. 5).
 
-Each vertex of a frame's feasible polygon comes with the contact force coefficients lambda the LP
-found there. Inside the polygon there is a family of valid lambda; the paper anchors it with one
+Each vertex of a frame's feasible polygon comes with contact force coefficients lambda valid there
+(the regularised least force at the vertex, :func:`unique_vertex_forces`: the walk's own lambda is
+one corner of a face of valid ones). Inside the polygon there is a family of valid lambda; the paper anchors it with one
 extra point: the **centre**, the original timing (p'', p'^2) = (0, 1) (or, when that is infeasible,
 the closest feasible point pulled 2% towards the polygon's centroid), where the lambda of **least summed
 contact force** is found (made unique by a small quadratic term, :func:`regularised_least_force`: the
@@ -49,14 +50,50 @@ def solve_center(lp, u, v, weights, spread, walk_start=False):
     return lam if walk_start else lp.solve_at(float(u), float(v), weights)
 
 
-def regularised_least_force(A, lo, hi, weights, spread):
+#: how far (in units of the force spread, i.e. body weights) a vertex's rows are widened for its
+#: unique forces: a vertex lies on the region's boundary, where the rows leave the forces no
+#: interior and the least-distance solve fails on round-off (with 1e-9 no vertex failed, but a
+#: vertex's forces still moved by 0.11 body weights on AV_8Walk's float32 copy: the thin slab's
+#: shape follows the vertex's own round-off). The forces hold their rows to twice this (the slack,
+#: and the solve's own check).
+VERTEX_SLACK = 1e-6
+
+
+def unique_vertex_forces(lp, P, L, act, weights, spread):
+    """The polygon's vertex forces ``L`` (k, K) made unique: at each vertex (u, v) of ``P`` the
+    regularised least force (:func:`regularised_least_force`) on the frame's LP rows, on the active
+    columns ``act``. The walk's own lambda at a vertex is one corner of a face of equally good
+    forces, and which corner it reaches depends on its pivots' ties: a float32 copy of a clip moved
+    vertex forces by up to a quarter of the body weight, and the torque coefficients baked from them
+    by more than their own size (16_33). The rows are widened by :data:`VERTEX_SLACK` body weights
+    (a vertex sits on them, see there) plus what the walk's own lambda misses them by (a vertex
+    clipped or merged within the polygon's tolerance can sit that far outside), so that the walk's
+    lambda is feasible and the solve has room; a vertex where it still gives up keeps that lambda."""
+    out = np.array(L, dtype=float, copy=True)
+    A = lp.A[:, 2:]
+    P = np.asarray(P, dtype=float)
+    shift = P @ lp.A[:, :2].T  # (k, rows)
+    lo, hi = lp.row_lo[None] - shift, lp.row_hi[None] - shift
+    walked = out[:, act] @ A.T
+    missed = np.maximum(np.max(np.where(np.isfinite(lo), lo - walked, 0.0), axis=1, initial=0.0),
+                        np.max(np.where(np.isfinite(hi), walked - hi, 0.0), axis=1, initial=0.0))
+    slack = (VERTEX_SLACK * float(spread) + missed)[:, None]
+    # NNLS's answer on a thin vertex misses the rows by ~1e-9 body weights: checked to the slack
+    for k, lam in enumerate(regularised_least_forces(A, lo - slack, hi + slack, weights, spread, tol=VERTEX_SLACK)):
+        if lam is not None:
+            out[k] = 0.0
+            out[k, act] = np.maximum(lam, 0.0)
+    return out
+
+
+def regularised_least_force(A, lo, hi, weights, spread, tol=1e-9):
     """The unique lam >= 0 with lo <= A lam <= hi that minimizes, with f_k = weights_k lam_k the
     force on basis k (newtons),
 
         sum f_k + sum f_k^2 / (2 spread);
 
-    None if there is none. The plain least-force LP has whole faces of optima (a vertical load can
-    lean on any pair of opposite friction-cone edges, two feet can share it in any ratio), and which
+    None if there is none (to ``tol`` times ``spread``). The plain least-force LP has whole faces of
+    optima (a vertical load can lean on any pair of opposite friction-cone edges, two feet can share it in any ratio), and which
     vertex it returns jumps with the float noise of the input; the quadratic term makes the
     minimizer unique and Lipschitz in the data (a change of the per-newton cost by e moves the
     forces by at most ``spread`` e).
@@ -65,6 +102,13 @@ def regularised_least_force(A, lo, hi, weights, spread):
     in units of ``spread``, y = w x + 1 turns the objective into |y|^2 / 2 + const, and the LDP
     min |y| s.t. G y >= h is the NNLS min |E z - e_last|, z >= 0, with E = [G^T; h^T]. SciPy's NNLS
     is robust on the degenerate rows where HiGHS's active-set QP stops with a solve error."""
+    return regularised_least_forces(A, np.asarray(lo, dtype=float)[None], np.asarray(hi, dtype=float)[None],
+                                    weights, spread, tol)[0]
+
+
+def regularised_least_forces(A, lo, hi, weights, spread, tol=1e-9):
+    """:func:`regularised_least_force` for each row of ``lo`` and ``hi`` (m, rows), which must be
+    finite on the same rows: the least-distance matrix is built once (a polygon's vertices)."""
     from scipy.optimize import nnls
 
     w = np.asarray(weights, dtype=float)
@@ -73,14 +117,26 @@ def regularised_least_force(A, lo, hi, weights, spread):
     lo = np.asarray(lo, dtype=float)
     hi = np.asarray(hi, dtype=float)
     n = len(w)
-    has_lo, has_hi = lo > -1e20, hi < 1e20
+    has_lo, has_hi = lo[0] > -1e20, hi[0] < 1e20
+    if np.any((lo > -1e20) != has_lo) or np.any((hi < 1e20) != has_hi):
+        raise ValueError("the bounds must be finite on the same rows for every point")
     Ar = A / w  # x = (y - 1) / w in units of spread
     A1 = Ar.sum(axis=1)
     G = np.vstack([np.diag(1.0 / w), Ar[has_lo], -Ar[has_hi]])
-    h = np.concatenate([1.0 / w, lo[has_lo] / s + A1[has_lo], -hi[has_hi] / s - A1[has_hi]])
-    E = np.vstack([G.T, h[None, :]])
+    E = np.vstack([G.T, np.zeros((1, G.shape[0]))])
     target = np.zeros(n + 1)
     target[-1] = 1.0
+    out = []
+    for lo_j, hi_j in zip(lo, hi):
+        E[n] = np.concatenate([1.0 / w, lo_j[has_lo] / s + A1[has_lo], -hi_j[has_hi] / s - A1[has_hi]])
+        out.append(_least_distance(E, target, A, lo_j, hi_j, w, s, tol * s, nnls))
+    return out
+
+
+def _least_distance(E, target, A, lo, hi, w, s, tol, nnls):
+    """One point's forces from the least-distance NNLS (see :func:`regularised_least_force`); None
+    when the rows are incompatible, NNLS stops at its limit, or the answer misses a row by > tol."""
+    n = len(w)
     try:
         z, _ = nnls(E, target, maxiter=50 * E.shape[1])
     except RuntimeError:  # iteration limit
@@ -89,7 +145,6 @@ def regularised_least_force(A, lo, hi, weights, spread):
     if abs(r[-1]) <= 1e-12:  # e_last is in the cone of E's columns: the rows are incompatible
         return None
     lam = s * (-r[:n] / r[-1] - 1.0) / w
-    tol = 1e-9 * s
     Al = A @ lam
     if np.any(lam < -tol) or np.any(Al < lo - tol) or np.any(Al > hi + tol):
         return None

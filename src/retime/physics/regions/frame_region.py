@@ -47,6 +47,14 @@ class RegionOptions:
     # median 1.7%, at most 2.4%) while forces move by at most this times a change of the cost per newton
     # (float32 rounding: 1e-7 body weights, against half a body weight for the plain LP's vertex)
     force_spread: float = 1.0
+    # the polygon vertices' forces: the walk's own (one corner of a face of valid forces, which moves
+    # with float rounding: up to 1.2 body weights on a float32 copy), or the regularised least force
+    # at each vertex (forces.unique_vertex_forces: unique, moves <= 1e-4 of its size). On, a float32
+    # copy's timing is within 0.1 source frame on 19 of 33 clips (15 off), median 0.074 (0.16), but
+    # 16_16 0.014 -> 0.43 and AV_8Walk 1.2 -> 2.8 (nearby minima; README), and Fig. 12's Feasible
+    # stage costs 3x (16_16 0.50 -> 1.51 ms a frame, over issue 4's 1 ms for Force + Feasible + Bake):
+    # off until the vertex solves are cheaper
+    unique_vertex_forces: bool = False
     workers: int | None = None  # processes for many frames (default: all cores, at most 2)
 
 
@@ -353,7 +361,7 @@ def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_
     (``pad`` only on rows with a budget): the captured motion's inconsistency is taken to come from
     its accelerations, so it grows with p'^2. ``pool``: the HiGHS objects to use (warm starts from
     the frames solved with it before); default: new ones."""
-    from .forces import force_weights, solve_center
+    from .forces import force_weights, solve_center, unique_vertex_forces
 
     pool = pool or HighsPool()
     a, b, c, N = (np.asarray(x, dtype=float) for x in (a, b, c, N))
@@ -408,14 +416,16 @@ def frame_region(a, b, c, N, lo, hi, opts: RegionOptions, body_weight: float, n_
     if dist > 0 and len(P) >= 3:
         center = q + 0.02 * (P.mean(axis=0) - q)
     clam = np.zeros(Kall)
+    fw = force_weights(N[:3][:, act] if n_root >= 3 else N[:, act], n_root)
+    if lp is not None and opts.unique_vertex_forces:
+        L = unique_vertex_forces(lp, P, L, act, fw, opts.force_spread * body_weight)
     if lp is not None and (lp is lp0 or noisy) and dist == 0.0 and not relaxed and np.any(lam0 != 0):
         # the centre is the original timing: its least-force LP was solved already (with the noise
         # band too: those forces still fit the wider rows, and "match" then costs nothing there)
         clam = lam0.copy()
     elif lp is not None:
         before = lp.n_solves
-        lam_c = solve_center(lp, center[0], center[1], force_weights(N[:3][:, act] if n_root >= 3 else N[:, act], n_root),
-                             opts.force_spread * body_weight)
+        lam_c = solve_center(lp, center[0], center[1], fw, opts.force_spread * body_weight)
         n_lp += lp.n_solves - before  # HiGHS runs only if NNLS gave up
         if lam_c is None:  # the centre sits on a clipped edge within round-off: nearest vertex
             lam_c = _nearest_vertex_lam(P, L, center)[act]
