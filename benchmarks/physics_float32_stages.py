@@ -27,7 +27,7 @@ from retime.motion import load_motion
 from retime.motion.files import save_motion
 from retime.physics.api import make_problem, prepare
 from retime.physics.method import Settings
-from retime.physics.model.contacts import above_own_floor, local_floor
+from retime.motion.feet import above_own_floor, local_floor
 from retime.physics.model.dynamics import dynamics_terms
 from retime.physics.regions import RegionOptions
 from retime.physics.timing.globalstart import global_start
