@@ -301,6 +301,18 @@ def _step_tables(D, S, a0, h, n_fine, kmin, kmax):
             if c < s:  # a linear between speeds c and c + 1 (beyond the last speed a constant)
                 at += 0.5 * x * x * (S[i, c] - S[i, c - 1])
             integral[i - first, b] = at
+    # a step's middle, q - (kmin + b) / 2 fine points, depends on 2 q - b alone: its grid rows and
+    # weight once per value (the same floating-point sums as per entry)
+    off = K - 1
+    rows0 = np.empty(2 * n_fine + K, dtype=np.int64)
+    rows1 = np.empty(2 * n_fine + K, dtype=np.int64)
+    frac = np.empty(2 * n_fine + K)
+    for mm in range(2 * n_fine + K):
+        tc = min(max(a0 + (0.5 * (mm - off - kmin)) * h, 0.0), n - 1.0)
+        i0 = min(int(tc), n - 2) if n > 1 else 0
+        frac[mm] = tc - i0 if n > 1 else 0.0
+        rows0[mm] = i0 - first
+        rows1[mm] = min(i0 + 1, n - 1) - first
     for q in range(n_fine + 1):
         t = min(max(a0 + q * h, 0.0), n - 1.0)  # the triple's middle frame is q
         j0 = min(int(t), n - 2) if n > 1 else 0
@@ -308,11 +320,9 @@ def _step_tables(D, S, a0, h, n_fine, kmin, kmax):
         j1 = min(j0 + 1, n - 1)
         A0, A1 = integral[j0 - first], integral[j1 - first]
         for b in range(K):
-            tc = min(max(a0 + (q - 0.5 * (kmin + b)) * h, 0.0), n - 1.0)
-            i0 = min(int(tc), n - 2) if n > 1 else 0
-            fc = tc - i0 if n > 1 else 0.0
-            i1 = min(i0 + 1, n - 1)
-            cost_into[q, b] = at_speed[i0 - first, b] * (1.0 - fc) + at_speed[i1 - first, b] * fc
+            mm = 2 * q - b + off
+            fc = frac[mm]
+            cost_into[q, b] = at_speed[rows0[mm], b] * (1.0 - fc) + at_speed[rows1[mm], b] * fc
             level[q, b] = A0[b] * (1.0 - ft) + A1[b] * ft
     return cost_into, level
 
