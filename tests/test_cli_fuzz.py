@@ -17,7 +17,7 @@ from retime.cli import main
 from retime.data import bundled_path
 from retime.motion import load_motion, save_bvh
 
-BUDGET_S = 12.0  # seconds per kind of file (at most 400 cases each)
+BUDGET_S = 6.0  # seconds per kind of file (at most 400 cases each; the suite keeps to ~10 minutes)
 
 
 def _cut_bvh(frames=12):
@@ -130,7 +130,7 @@ def test_mutated_inputs_fail_cleanly(kind, seeds, tmp_path):
 # ------------------------------------------------------------------ batch: jobs files and layouts (issue 22)
 # Clips run in this process (run_task, as a worker runs them) instead of on a Dask cluster, so that a few
 # hundred layouts fit the budget; the cluster, its signals and its failures are tests/test_batch*.py's.
-BATCH_BUDGET_S = 20.0
+BATCH_BUDGET_S = 10.0
 NAMES = ["a.bvh", "b.bvh", "summary.bvh", ".retime-batch.bvh", "index.bvh", "jobs.bvh", "x.bvh"]
 
 
