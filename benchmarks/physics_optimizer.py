@@ -1,6 +1,6 @@
 """Where the physics optimizer's seconds go (issue 24), on the long capture of ``longclip.py`` or on
 any clip: the L-BFGS stage (iterations, objective evaluations), then Newton's polish split into its
-coloured Hessians (gradients and seconds), its trial steps (evaluations), its banded Cholesky
+exact Hessians (one pass over the samples each), its trial steps (evaluations), its banded Cholesky
 factorizations and solves (the shift search among them), and the rest. Output at half duration, as
 ``scaling.py`` runs physics; the problem (dynamics, regions, baked objective, grid start) is built
 first and not timed.
@@ -58,13 +58,7 @@ def instrument(ledger: Ledger):
 
     optimize.evaluate = ledger.timed(optimize.evaluate)
     newton.evaluate_c = ledger.timed(newton.evaluate_c)
-    hessian = newton.banded_hessian
-
-    def banded_hessian(*args, **kwargs):
-        with ledger.account_of("Newton: gradients of the coloured Hessians"):
-            return hessian(*args, **kwargs)
-
-    newton.banded_hessian = banded_hessian
+    newton.hessian_c = ledger.timed(newton.hessian_c, "Newton: exact Hessians (one pass each)")
     newton.solve_arrowhead = ledger.timed(newton.solve_arrowhead, "Newton: banded Cholesky + solves (all)")
     newton.definite_shift = ledger.timed(newton.definite_shift, "Newton: of which the shift search")
     polish = optimize.polish

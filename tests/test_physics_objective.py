@@ -217,6 +217,31 @@ def test_long_clip_objective_does_not_depend_on_the_thread_count(setup, monkeypa
     assert np.allclose(single[1], one_pass[1], rtol=1e-10, atol=1e-12 * np.abs(one_pass[1]).max())
 
 
+
+def test_long_clip_hessian_does_not_depend_on_the_thread_count(setup, monkeypatch):
+    """The exact Hessian of a long clip sums the same fixed chunks: bit for bit the same on one thread
+    as on two, and the same as one pass up to rounding."""
+    import numba
+
+    pd, rs, target = setup
+    obj = O.bake(pd, rs, target, alpha=1.0, beta=0.7)
+    S = float(pd.times[-1])
+    sp = _wiggly_spline(S, 0.8 * S, seed=1)
+    c, T = sp.coefficients(), sp.duration_of()
+    one_pass = O.hessian_c(obj, sp, c, T)
+    monkeypatch.setattr(O, "PARALLEL_MIN_SAMPLES", 0)
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        single = O.hessian_c(obj, sp, c, T)
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        double = O.hessian_c(obj, sp, c, T)
+    finally:
+        numba.set_num_threads(threads)
+    assert np.array_equal(single[0], double[0]) and np.array_equal(single[1], double[1]) and single[2] == double[2]
+    assert np.allclose(single[0], one_pass[0], rtol=1e-10, atol=1e-12 * np.abs(one_pass[0]).max())
+    assert single[2] == pytest.approx(one_pass[2], rel=1e-10)
+
 def _rays(obj, i):
     """(centre, ray directions as angles) of frame i's fan in the objective's metric."""
     ob = obj.arrays

@@ -7,12 +7,13 @@ coefficients that are not pinned (ends, locks), plus T when the duration is free
 therefore **banded** (half-bandwidth b) with one dense row and column for T: an arrowhead. (In the
 optimizer's w, each c is a normalized cumulative sum of all of them, so the same Hessian is dense.)
 
-* **Hessian:** central differences of the analytic gradient with graph colouring: the coefficients
-  ``k = r (mod 2 b + 1)`` are stepped together (two columns of one colour are at least 2 b + 1
-  apart, so no sample reads both and every gradient entry changes by one of them only), T alone;
-  2 x 9 (2 x 10 with a free duration) gradients per Hessian for the quartic, whatever the clip's
-  length. (Forward differences, half as many gradients, were measured and not kept: 7-15% less time
-  on the bundled clips, but a worse KKT residual at the stop and twice the Newton iterations on 16_16.)
+* **Hessian:** exact, in one pass over the samples (:func:`retime.physics.timing.objective.hessian_c`:
+  per sample the 6 x 6 block of its span's coefficients and T, J^T (d2h) J plus the first derivatives
+  times the second derivatives of p' and p'', with the spline inverse's implicit-function terms; the
+  keytimes' terms in :func:`_keytime_hessian`). It costs about one gradient, where the central
+  differences of the gradient with graph colouring it replaces (:func:`banded_hessian`, kept as the
+  tests' reference: the coefficients ``k = r (mod 2 b + 1)`` stepped together) took 2 x 9 (2 x 10 with a
+  free duration) for the quartic.
 * **Step:** Newton with a shift (H + (s0 + sigma) I, s0 the least of 0, 1e-12 x 4^k of the largest
   curvature that makes the Cholesky succeed, :func:`definite_shift`; Cholesky of the band by
   :func:`scipy.linalg.cholesky_banded`, the T column by its Schur complement), sigma a
@@ -53,7 +54,7 @@ import time
 import numpy as np
 from scipy.linalg import cho_solve_banded, cholesky_banded, LinAlgError
 
-from .objective import evaluate_c
+from .objective import evaluate_c, hessian_c
 
 STALL_ITERATIONS = 10
 BACKTRACKS = 4
@@ -139,6 +140,66 @@ class BandedObjective:
             gT += kT
         g = gc[co.free]
         return val, (np.r_[g, gT] if co.free_T else g)
+
+
+    def hessian(self, z):
+        """(ab, col, corner): the exact Hessian of F at z (:func:`retime.physics.timing.objective.hessian_c`,
+        one pass over the samples, plus the keytimes' terms) in the layout of :func:`banded_hessian`."""
+        co, pr = self.coords, self.coords.problem
+        c, T = co.coefficients(z, self.c0)
+        hb, hcol, corner = hessian_c(pr.obj, pr.spline, c, T, workspace=pr.workspace)
+        if pr.n_eq:
+            corner += _keytime_hessian(pr, c, T, self.mu, self.rho, hb, hcol)
+        return free_band(hb, co.free, co.band), (hcol[co.free] if co.free_T else None), \
+            (corner if co.free_T else None)
+
+
+def free_band(hb, free, band):
+    """The upper band form (:func:`scipy.linalg.solveh_banded`) of the Hessian among the coefficients
+    ``free`` (increasing), from hb[k, o] = H[k, k + o] over all coefficients: pinned coefficients drop
+    out, so two free ones ``off`` apart in z may be nearer than ``band`` in c, never farther."""
+    n = len(free)
+    ab = np.zeros((band + 1, n))
+    for off in range(band + 1):
+        gap = free[off:] - free[:n - off]
+        ab[band - off, off:] = np.where(gap <= band, hb[free[:n - off], np.minimum(gap, band)], 0.0)
+    return ab
+
+
+def _keytime_hessian(problem, c, T, mu, rho, hb, hcol):
+    """Add the keytimes' augmented-Lagrangian Hessian rho dh dh^T + (mu + rho h) d2h in (c, T) into hb
+    and hcol; returns its d2/dT2. h = N(tau) c - s* is linear in c; tau = t* / T moves with a free T."""
+    from .optimize import _basis_at
+
+    sp = problem.spline
+    corner = 0.0
+    for j, (s_star, t_star) in enumerate(problem.keytimes):
+        tau = min(max(t_star / T, 0.0), 1.0)
+        Nb, dN = _basis_at(sp, tau)
+        lo, d2N = _basis_second_at(sp, tau)
+        inner = 0.0 < tau < 1.0 and sp.free
+        h = float(Nb @ c) - s_star
+        lam = mu[j] + rho * h
+        hT = -float(dN @ c) * tau / T if inner else 0.0
+        # d2h / dc dT = -N'(tau) tau / T; d2h / dT2 = N''(tau) c (tau / T)^2 + 2 N'(tau) c tau / T^2
+        hcT = -dN * tau / T if inner else np.zeros_like(Nb)
+        hTT = (float(d2N @ c) * (tau / T) ** 2 + 2.0 * float(dN @ c) * tau / T ** 2) if inner else 0.0
+        for off in range(hb.shape[1]):
+            hb[lo:lo + sp.support - off, off] += rho * Nb[lo:lo + sp.support - off] * Nb[lo + off:lo + sp.support]
+        hcol += rho * Nb * hT + lam * hcT
+        corner += rho * hT * hT + lam * hTT
+    return corner
+
+
+def _basis_second_at(sp, tau):
+    """(m, d2N): the span of ``tau`` (its basis functions are m .. m + band) and the second derivatives
+    (d2/dtau2) of all basis functions there (span polynomials, as optimize._basis_at)."""
+    m = int(np.clip(np.searchsorted(sp.breaks, tau, side="right") - 1, 0, len(sp.breaks) - 2))
+    x = tau - sp.breaks[m]
+    r = np.arange(sp.support)
+    out = np.zeros(sp.n_c)
+    out[m:m + sp.support] = (r * (r - 1) * x ** np.maximum(r - 2, 0)) @ sp.span_matrices[m]
+    return m, out
 
 
 def banded_hessian(fun, z, steps, g=None):
@@ -277,7 +338,7 @@ def newton_inner(fun, z, w_bounds, max_iter=100, gain_tol=1e-11, deadline=None, 
     for it in range(1, max_iter + 1):
         if deadline is not None and time.perf_counter() > deadline:
             return z, f, it - 1, False, "time limit"
-        ab, col, corner = banded_hessian(fun, z, difference_steps(coords, z))
+        ab, col, corner = fun.hessian(z)
         floor, scale = definite_shift(ab, col, corner)
         definite = floor <= 1e-9 * scale
         first = True

@@ -404,6 +404,13 @@ def _frame_parts(i, u0, v0, ob, cache):
     """Frame i at (u, v) = (p'', p'^2) of the baked arrays ``ob``: the torque term g and its gradient
     (gu, gv), the offset (du, dv) from the region's closest point and its square d2 (in the frame's
     metric, which scales u by su and v by sv). ``cache[i]``: the wedge to start from, updated."""
+    g, gu, gv, _, _, _, du, dv, d2, su, sv = _frame_geometry(i, u0, v0, ob, cache)
+    return g, gu, gv, du, dv, d2, su, sv
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _frame_geometry(i, u0, v0, ob, cache):
+    """:func:`_frame_parts` with the torque term's second derivatives (guu, guv, gvv) after its gradient."""
     poff, px, py, cen, scale, mode, wc = ob.poff, ob.px, ob.py, ob.cen, ob.scale, ob.mode, ob.wc
     su, sv = scale[i, 0], scale[i, 1]
     u, v = su * u0, sv * v0
@@ -467,10 +474,12 @@ def _frame_parts(i, u0, v0, ob, cache):
                         break
     kw = p0 + k if md == 0 else p0
     g, gu, gv = _wedge_quadratic(wc, kw, u0, v0)
+    guu, guv, gvv = 2.0 * wc[kw, 1], wc[kw, 2], 2.0 * wc[kw, 0]
     if md == 0 and not at_centre and ob.blend > 0.0 and _near_a_ray(p0, nv, k, u, v, cu, cv, px, py, ob.blend):
-        g, gu, gv = _fan_blend(p0, nv, k, u, v, u0, v0, su, sv, cu, cv, ob.ray, wc, ob.blend, g, gu, gv)
+        g, gu, gv, guu, guv, gvv = _fan_blend(p0, nv, k, u, v, u0, v0, su, sv, cu, cv, ob.ray, wc, ob.blend,
+                                              g, gu, gv, guu, guv, gvv)
     du, dv = u - qx, v - qy
-    return g, gu, gv, du, dv, du * du + dv * dv, su, sv
+    return g, gu, gv, guu, guv, gvv, du, dv, du * du + dv * dv, su, sv
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -517,14 +526,16 @@ def _near_a_ray(p0, nv, k, u, v, cu, cv, px, py, eps):
 
 
 @njit(cache=True, error_model="numpy")
-def _fan_blend(p0, nv, k, u, v, u0, v0, su, sv, cu, cv, ray, wc, eps, g, gu, gv):
+def _fan_blend(p0, nv, k, u, v, u0, v0, su, sv, cu, cv, ray, wc, eps, g, gu, gv, guu, guv, gvv):
     """The torque term mollified in the fan's angle (see :data:`FAN_BLEND`): each wedge q's
     quadratic weighted by psi_q = S((phi - theta_q) / b) - S((phi - theta_{q+1}) / b), its indicator
     over the angle phi smoothed by a C2 kernel of half-width b (a partition of unity: the weights sum
     to 1). b = eps / r far from the centre (eps in the frame's metric, body weights), softly capped at
     FAN_BLEND_ANGLE near it: b = eps B / (eps + r B). Where no ray is within b of phi this is the
     wedge's own quadratic ``g``; the fan's kinks (wedge k's gradient differs from its neighbours')
-    become C2, whatever the wedges' widths. (u, v) in the metric, (u0, v0) the timing itself."""
+    become C2, whatever the wedges' widths. (u, v) in the metric, (u0, v0) the timing itself.
+    Returns the value, its gradient and its second derivatives (uu, uv, vv) in (u0, v0); ``g`` .. ``gvv``
+    are wedge k's own."""
     dx, dy = u - cu, v - cv
     r2 = dx * dx + dy * dy
     r = math.sqrt(r2)
@@ -536,11 +547,21 @@ def _fan_blend(p0, nv, k, u, v, u0, v0, su, sv, cu, cv, ray, wc, eps, g, gu, gv)
     lo = _angle_between(th_k, phi)  # phi - theta_k >= 0
     hi = lo - _angle_between(th_k, ray[p0 + j])  # phi - theta_{k+1} <= 0
     if lo >= band and hi <= -band:
-        return g, gu, gv  # no ray within the band: the wedge's own quadratic
+        return g, gu, gv, guu, guv, gvv  # no ray within the band: the wedge's own quadratic
     dphi_u, dphi_v = -dy * su / r2, dx * sv / r2
     dband_dr = -eps * B * B / ((eps + r * B) ** 2)
     db_u, db_v = dband_dr * dx * su / r, dband_dr * dy * sv / r
+    # second derivatives in (u0, v0) of the angle phi and of the band b(r) (the metric scales u by su, v by sv)
+    r4 = r2 * r2
+    phi_uu, phi_uv, phi_vv = 2.0 * dx * dy * su * su / r4, (dy * dy - dx * dx) * su * sv / r4, -2.0 * dx * dy * sv * sv / r4
+    d2band_dr2 = 2.0 * eps * B ** 3 / ((eps + r * B) ** 3)
+    r3 = r2 * r
+    ru, rv = dx * su / r, dy * sv / r
+    b_uu = d2band_dr2 * ru * ru + dband_dr * dy * dy * su * su / r3
+    b_uv = d2band_dr2 * ru * rv - dband_dr * dx * dy * su * sv / r3
+    b_vv = d2band_dr2 * rv * rv + dband_dr * dx * dx * sv * sv / r3
     tot, tu, tv = 0.0, 0.0, 0.0
+    tuu, tuv, tvv = 0.0, 0.0, 0.0
     # wedge k, then outwards on both sides while the wedge's nearer ray is within the band
     for direction in range(2):
         q = k
@@ -574,7 +595,28 @@ def _fan_blend(p0, nv, k, u, v, u0, v0, su, sv, cu, cv, ray, wc, eps, g, gu, gv)
             tot += psi * gq
             tu += psi * guq + gq * dpsi_u
             tv += psi * gvq + gq * dpsi_v
-    return tot, tu, tv
+            # second derivatives of x = d / b: (phi_ij - x_i b_j - x_j b_i - x b_ij) / b, per ray
+            xlu, xlv = (dphi_u - xl * db_u) / band, (dphi_v - xl * db_v) / band
+            xhu, xhv = (dphi_u - xh * db_u) / band, (dphi_v - xh * db_v) / band
+            c_lo, c_hi = _smooth_step_curvature(xl), _smooth_step_curvature(xh)
+            psi_uu = (c_lo * xlu * xlu + ds_lo * (phi_uu - 2.0 * xlu * db_u - xl * b_uu) / band
+                      - c_hi * xhu * xhu - ds_hi * (phi_uu - 2.0 * xhu * db_u - xh * b_uu) / band)
+            psi_uv = (c_lo * xlu * xlv + ds_lo * (phi_uv - xlu * db_v - xlv * db_u - xl * b_uv) / band
+                      - c_hi * xhu * xhv - ds_hi * (phi_uv - xhu * db_v - xhv * db_u - xh * b_uv) / band)
+            psi_vv = (c_lo * xlv * xlv + ds_lo * (phi_vv - 2.0 * xlv * db_v - xl * b_vv) / band
+                      - c_hi * xhv * xhv - ds_hi * (phi_vv - 2.0 * xhv * db_v - xh * b_vv) / band)
+            tuu += psi_uu * gq + 2.0 * dpsi_u * guq + psi * 2.0 * wc[p0 + q, 1]
+            tuv += psi_uv * gq + dpsi_u * gvq + dpsi_v * guq + psi * wc[p0 + q, 2]
+            tvv += psi_vv * gq + 2.0 * dpsi_v * gvq + psi * 2.0 * wc[p0 + q, 0]
+    return tot, tu, tv, tuu, tuv, tvv
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _smooth_step_curvature(x):
+    """d2S/dx2 of :func:`fan_blend_weight`'s step (0 outside (-1, 1))."""
+    if x <= -1.0 or x >= 1.0:
+        return 0.0
+    return -3.75 * x * (1.0 - x * x)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -607,6 +649,44 @@ def _frame_eval(i, u0, v0, ob, cache):
     r = math.sqrt(d2 + delta * delta)
     k = alpha / r
     return alpha * (r - delta) + g, k * du * su + gu, k * dv * sv + gv
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _distance_curvature(p0, nv, px, py, x, y):
+    """Half the Hessian of the squared distance from (x, y) (outside) to the boundary of polygon p0
+    (nv vertices), in the metric: n n^T (n the unit normal) where the closest point is inside an edge,
+    the identity where it is a vertex. (kxx, kxy, kyy); the nearest edge by a scan of all of them."""
+    best, t_best, nx, ny = 1e300, 0.0, 0.0, 0.0
+    for e in range(nv if nv > 1 else 1):
+        qx, qy, t = edge_projection(p0, nv, e, px, py, x, y)
+        d = (qx - x) ** 2 + (qy - y) ** 2
+        if d < best:
+            best, t_best, nx, ny = d, t, x - qx, y - qy
+    if 0.0 < t_best < 1.0 and best > 0.0:
+        return nx * nx / best, nx * ny / best, ny * ny / best
+    return 1.0, 0.0, 1.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _frame_second(i, u0, v0, ob, cache):
+    """f, df/du, df/dv, d2f/du2, d2f/dudv, d2f/dv2 of frame i at (u, v) = (p'', p'^2)."""
+    alpha, delta = ob.alpha, ob.delta
+    g, gu, gv, guu, guv, gvv, du, dv, d2, su, sv = _frame_geometry(i, u0, v0, ob, cache)
+    if d2 == 0.0:  # inside the region: only the torque term
+        return g, gu, gv, guu, guv, gvv
+    p0 = ob.poff[i]
+    kxx, kxy, kyy = _distance_curvature(p0, ob.poff[i + 1] - p0, ob.px, ob.py, su * u0, sv * v0)
+    if delta <= 0.0:  # alpha d^2: gradient 2 alpha (du, dv), Hessian 2 alpha K (in the metric)
+        a2 = 2.0 * alpha
+        return (alpha * d2 + g, a2 * du * su + gu, a2 * dv * sv + gv,
+                a2 * kxx * su * su + guu, a2 * kxy * su * sv + guv, a2 * kyy * sv * sv + gvv)
+    # alpha (r - delta), r = sqrt(d^2 + delta^2): gradient alpha / r (du, dv), Hessian alpha / r (K - d d^T / r^2)
+    r = math.sqrt(d2 + delta * delta)
+    k = alpha / r
+    r2 = r * r
+    return (alpha * (r - delta) + g, k * du * su + gu, k * dv * sv + gv,
+            k * (kxx - du * du / r2) * su * su + guu, k * (kxy - du * dv / r2) * su * sv + guv,
+            k * (kyy - dv * dv / r2) * sv * sv + gvv)
 
 
 @njit(cache=True, error_model="numpy")
@@ -647,6 +727,59 @@ def _horner_column(M, m, l, x):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _horner_column3(M, m, l, x):
+    """(N, N', N'', N''') at x of basis function l of span m (power coefficients M[m, :, l])."""
+    v, d1, d2, d3 = 0.0, 0.0, 0.0, 0.0
+    for r in range(M.shape[1] - 1, -1, -1):
+        d3 = d3 * x + d2
+        d2 = d2 * x + d1
+        d1 = d1 * x + v
+        v = v * x + M[m, r, l]
+    return v, d1, 2.0 * d2, 6.0 * d3
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _fourth_derivative(A, m, x):
+    """p'''' at x of the polynomial with power coefficients A[m, :] (0 below degree 4)."""
+    acc = 0.0
+    for r in range(A.shape[1] - 1, 3, -1):
+        acc = acc * x + A[m, r] * (r * (r - 1) * (r - 2) * (r - 3))
+    return acc
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _first_span(Asp, s0):
+    """The span whose polynomial starts at or below source time s0 (binary search)."""
+    lo_, hi_ = 0, Asp.shape[0] - 1
+    while lo_ < hi_:
+        mid = (lo_ + hi_ + 1) // 2
+        if s0 >= Asp[mid, 0]:
+            lo_ = mid
+        else:
+            hi_ = mid - 1
+    return lo_
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _next_sample(Asp, breaks, S, sj, m, x, P1, P2, s_prev):
+    """(span, x) of source time sj, from the previous sample's (span m, x, p' and p'' there, its time):
+    the span walk, a second-order predictor (the inverse function's Taylor series) and one Newton step,
+    bisection only if that misses the tolerance."""
+    n_span = len(breaks) - 1
+    while m + 1 < n_span and sj >= Asp[m + 1, 0]:
+        m += 1
+        x = 0.0
+        P1 = Asp[m, 1]
+        P2 = 2.0 * Asp[m, 2]
+        s_prev = Asp[m, 0]
+    h = breaks[m + 1] - breaks[m]
+    if P1 > 0.0:
+        ds = (sj - s_prev) / P1
+        x += ds - 0.5 * P2 * ds * ds / P1
+    return m, _invert(Asp, m, sj, x, h, S, 1)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _invert(A, m, sj, x, h, S, steps):
     """x in [0, h] with span m's polynomial A[m] (increasing) equal to sj: ``steps`` Newton steps from
     the guess x, a safeguarded bisection-Newton only if they miss the tolerance."""
@@ -683,19 +816,9 @@ def _invert(A, m, sj, x, h, S, steps):
 def _chunk(j0, j1, Asp, T, S, breaks, Msp, ob, cache, want_grad, gc):
     """Samples j0..j1-1 of the objective (see _evaluate); gradient added into gc."""
     s, omega, fi, fw, gamma = ob.s, ob.omega, ob.fi, ob.fw, ob.gamma
-    n_span = len(breaks) - 1
     gT = 0.0
     total = 0.0
-    # first span holding s[j0]
-    m = 0
-    lo_, hi_ = 0, n_span - 1
-    while lo_ < hi_:
-        mid = (lo_ + hi_ + 1) // 2
-        if s[j0] >= Asp[mid, 0]:
-            lo_ = mid
-        else:
-            hi_ = mid - 1
-    m = lo_
+    m = _first_span(Asp, s[j0])
     x = 0.0
     invT = 1.0 / T
     P1 = 0.0
@@ -703,19 +826,7 @@ def _chunk(j0, j1, Asp, T, S, breaks, Msp, ob, cache, want_grad, gc):
     s_prev = s[j0]
     for jj in range(j0, j1):
         sj = s[jj]
-        while m + 1 < n_span and sj >= Asp[m + 1, 0]:
-            m += 1
-            x = 0.0
-            P1 = Asp[m, 1]
-            P2 = 2.0 * Asp[m, 2]
-            s_prev = Asp[m, 0]
-        h = breaks[m + 1] - breaks[m]
-        # second-order predictor from the previous sample (the inverse function's Taylor series), one
-        # Newton step; bisection only if that misses the tolerance
-        if P1 > 0.0:
-            ds = (sj - s_prev) / P1
-            x += ds - 0.5 * P2 * ds * ds / P1
-        x = _invert(Asp, m, sj, x, h, S, 1)
+        m, x = _next_sample(Asp, breaks, S, sj, m, x, P1, P2, s_prev)
         s_prev = sj
         _, P1, P2, P3 = _horner(Asp, m, x)
         pd = P1 * invT
@@ -788,6 +899,114 @@ def _evaluate_par(nch, c, T, breaks, Msp, ob, cache, want_grad, gc):
     return val, gT
 
 
+@njit(cache=True, error_model="numpy")
+def _hessian_chunk(j0, j1, Asp, T, S, breaks, Msp, ob, cache, hb, hcol):
+    """Samples j0..j1-1 of the objective's exact Hessian in (c, T), added into hb (hb[k, o] =
+    d2E / dc_k dc_{k+o}) and hcol (d2E / dc_k dT); returns d2E / dT2. Per sample, with x its spline
+    parameter (p(x) = s_j, so dx/dc_l = -N_l / p'), p' = P1 / T and p'' = P2 / T^2: the sample's term
+    h(p', u = p'') = f(u, p'^2) / p' + gamma (p' + 1/p' - 2) gives J^T (d2h) J + h_p' d2p' + h_u d2p'',
+    where d2 p' and d2 p'' carry the inverse's implicit second derivatives
+    x_lk = -(p'' x_l x_k + N_l' x_k + N_k' x_l) / p'."""
+    s, omega, fi, fw, gamma = ob.s, ob.omega, ob.fi, ob.fw, ob.gamma
+    q1 = Msp.shape[2]
+    N1 = np.empty(q1)
+    N2 = np.empty(q1)
+    N3 = np.empty(q1)
+    dx = np.empty(q1)
+    dpd = np.empty(q1 + 1)  # d p' / d(c_m .. c_{m+b}, T)
+    dpdd = np.empty(q1 + 1)
+    hTT = 0.0
+    invT = 1.0 / T
+    # the samples' walk along the spline (the same as _chunk's, whose helpers hold its logic)
+    m, x, P1, P2, s_prev = _first_span(Asp, s[j0]), 0.0, 0.0, 0.0, s[j0]
+    for jj in range(j0, j1):
+        sj = s[jj]
+        m, x = _next_sample(Asp, breaks, S, sj, m, x, P1, P2, s_prev)
+        s_prev = sj
+        _, P1, P2, P3 = _horner(Asp, m, x)
+        P4 = _fourth_derivative(Asp, m, x)
+        pd = P1 * invT
+        pdd = P2 * invT * invT
+        i = fi[jj]
+        wgt = fw[jj]
+        f, fu, fv, fuu, fuv, fvv = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        for side in range(2):
+            weight = 1.0 - wgt if side == 0 else wgt
+            if weight > 0.0:
+                a0, a1, a2, a3, a4, a5 = _frame_second(i + side, pdd, pd * pd, ob, cache)
+                f += weight * a0
+                fu += weight * a1
+                fv += weight * a2
+                fuu += weight * a3
+                fuv += weight * a4
+                fvv += weight * a5
+        om = omega[jj]
+        ipd = 1.0 / pd
+        fg = f + gamma
+        hp = om * (2.0 * fv - fg * ipd * ipd + gamma)  # dh/dp'
+        hu = om * fu * ipd  # dh/dp''
+        hpp = om * (4.0 * pd * fvv - 2.0 * fv * ipd + 2.0 * fg * ipd * ipd * ipd)
+        hpu = om * (2.0 * fuv - fu * ipd * ipd)
+        huu = om * fuu * ipd
+        for l in range(q1):
+            N0, N1[l], N2[l], N3[l] = _horner_column3(Msp, m, l, x)
+            dx[l] = -N0 / P1
+            dpd[l] = (N1[l] + P2 * dx[l]) * invT
+            dpdd[l] = (N2[l] + P3 * dx[l]) * invT * invT
+        dpd[q1] = -pd * invT
+        dpdd[q1] = -2.0 * pdd * invT
+        for l in range(q1 + 1):
+            for k in range(l, q1 + 1):
+                hk = (hpp * dpd[l] * dpd[k] + hpu * (dpd[l] * dpdd[k] + dpdd[l] * dpd[k])
+                      + huu * dpdd[l] * dpdd[k])
+                if k < q1:
+                    xlk = -(P2 * dx[l] * dx[k] + N1[l] * dx[k] + N1[k] * dx[l]) / P1
+                    P1lk = N2[l] * dx[k] + N2[k] * dx[l] + P3 * dx[l] * dx[k] + P2 * xlk
+                    P2lk = N3[l] * dx[k] + N3[k] * dx[l] + P4 * dx[l] * dx[k] + P3 * xlk
+                    hb[m + l, k - l] += hk + hp * P1lk * invT + hu * P2lk * invT * invT
+                elif l < q1:  # d2 p' / dc_l dT = -(d p' / dc_l) / T, d2 p'' / dc_l dT = -2 (d p'' / dc_l) / T
+                    hcol[m + l] += hk - (hp * dpd[l] + 2.0 * hu * dpdd[l]) * invT
+                else:  # d2 p' / dT2 = 2 p' / T^2, d2 p'' / dT2 = 6 p'' / T^2
+                    hTT += hk + (2.0 * hp * pd + 6.0 * hu * pdd) * invT * invT
+    return hTT
+
+
+@njit(cache=True, error_model="numpy")
+def _hessian(c, T, breaks, Msp, ob, cache, hb, hcol):
+    """The exact Hessian (see _hessian_chunk) into the zeroed hb and hcol; returns d2E / dT2."""
+    Asp = _span_poly(c, Msp, len(breaks) - 1)
+    return _hessian_chunk(0, len(ob.s), Asp, T, c[len(c) - 1], breaks, Msp, ob, cache, hb, hcol)
+
+
+@njit(cache=True, error_model="numpy", parallel=True)
+def _hessian_par(nch, c, T, breaks, Msp, ob, cache, hb, hcol):
+    """_hessian split into ``nch`` chunks of samples run on parallel threads, summed in chunk order."""
+    Asp = _span_poly(c, Msp, len(breaks) - 1)
+    ns = len(ob.s)
+    hbs = np.zeros((nch, hb.shape[0], hb.shape[1]))
+    hcols = np.zeros((nch, len(hcol)))
+    hTTs = np.zeros(nch)
+    S = c[len(c) - 1]
+    for k in prange(nch):
+        j0 = (ns * k) // nch
+        j1 = (ns * (k + 1)) // nch
+        hTTs[k] = _hessian_chunk(j0, j1, Asp, T, S, breaks, Msp, ob, cache, hbs[k], hcols[k])
+    for q in range(hb.shape[0]):
+        for o in range(hb.shape[1]):
+            acc = 0.0
+            for k in range(nch):
+                acc += hbs[k, q, o]
+            hb[q, o] = acc
+        acc = 0.0
+        for k in range(nch):
+            acc += hcols[k, q]
+        hcol[q] = acc
+    hTT = 0.0
+    for k in range(nch):
+        hTT += hTTs[k]
+    return hTT
+
+
 PARALLEL_MIN_SAMPLES = 20000  # threads pay off only for long clips; on a shared 2-core machine a busy
 # core stalls every parallel call, which an interactive loop of short calls cannot afford
 PARALLEL_CHUNKS = 8  # a long clip's samples are summed in this many chunks, whatever the thread count, so
@@ -819,6 +1038,21 @@ def evaluate_c(obj: BakedObjective, spline, c, T, grad=False, workspace: Objecti
     val, gT = _kernel(obj)(np.asarray(c, float), float(T), spline.breaks, spline.span_matrices, obj.arrays,
                            _wedges(obj, workspace), grad, gc)
     return (float(val), gc, float(gT)) if grad else float(val)
+
+
+def hessian_c(obj: BakedObjective, spline, c, T, workspace: ObjectiveWorkspace | None = None):
+    """The exact Hessian of E in (c, T), in one pass over the samples: (hb, col, corner) with
+    hb[k, o] = d2E / dc_k dc_{k+o} (o = 0 .. spline.band), col[k] = d2E / dc_k dT, corner = d2E / dT2
+    (the T parts whether or not the duration is free)."""
+    c = np.asarray(c, float)
+    hb = np.zeros((len(c), spline.span_matrices.shape[2]))
+    col = np.zeros(len(c))
+    args = (c, float(T), spline.breaks, spline.span_matrices, obj.arrays, _wedges(obj, workspace), hb, col)
+    if len(obj.arrays.s) < PARALLEL_MIN_SAMPLES:
+        corner = _hessian(*args)
+    else:
+        corner = _hessian_par(PARALLEL_CHUNKS, *args)
+    return hb, col, float(corner)
 
 
 def frame_terms(obj: BakedObjective, i, u, v, workspace: ObjectiveWorkspace | None = None):
@@ -893,13 +1127,9 @@ def _penalty_numpy(d2, alpha, delta):
     return np.where(d2 == 0.0, 0.0, alpha * (np.sqrt(d2 + delta * delta) - delta))
 
 
-def evaluate_numpy(obj: BakedObjective, spline, w=None) -> float:
-    """Twin of :func:`evaluate` (the value): each sample's output time by bisection on its span's
-    polynomial, each frame term by :func:`frame_terms_numpy`."""
-    ob = obj.arrays
-    w = spline.w if w is None else w
-    c = spline.coefficients(w)
-    T = spline.duration_of(w)
+def _sample_positions_numpy(ob, spline, c):
+    """(span, x, derivative): each sample's span and parameter x there (p(x) = s_j, by bisection), and
+    derivative(x, order), the order-th derivative of each sample's span polynomial."""
     breaks, Msp = spline.breaks, spline.span_matrices
     n_span, q1 = len(breaks) - 1, Msp.shape[1]
     Asp = np.einsum("mrl,ml->mr", Msp, c[np.arange(n_span)[:, None] + np.arange(q1)])  # s(x) per span
@@ -916,7 +1146,17 @@ def evaluate_numpy(obj: BakedObjective, spline, w=None) -> float:
         x = 0.5 * (lo + hi)
         above = derivative(x, 0) > ob.s
         hi, lo = np.where(above, x, hi), np.where(above, lo, x)
-    x = 0.5 * (lo + hi)
+    return m, 0.5 * (lo + hi), derivative
+
+
+def evaluate_numpy(obj: BakedObjective, spline, w=None) -> float:
+    """Twin of :func:`evaluate` (the value): each sample's output time by bisection on its span's
+    polynomial, each frame term by :func:`frame_terms_numpy`."""
+    ob = obj.arrays
+    w = spline.w if w is None else w
+    c = spline.coefficients(w)
+    T = spline.duration_of(w)
+    m, x, derivative = _sample_positions_numpy(ob, spline, c)
     pd = derivative(x, 1) / T
     u = derivative(x, 2) / T ** 2
     v = pd * pd
@@ -926,6 +1166,145 @@ def evaluate_numpy(obj: BakedObjective, spline, w=None) -> float:
             d, g = frame_terms_numpy(obj, ob.fi[j] + side, u[j], v[j])
             f[j] += weight[j] * (g + _penalty_numpy(d * d, ob.alpha, ob.delta))
     return float(np.sum(ob.omega * (f / pd + ob.gamma * (pd + 1.0 / pd - 2.0))))
+
+
+def frame_second_numpy(obj: BakedObjective, i, u, v):
+    """Twin of the kernels' per-frame second derivatives: (f, f_u, f_v, f_uu, f_uv, f_vv) of frame i at
+    (u, v) = (p'', p'^2), from the polygon by a scan of all its edges and the fan's wedges all at once."""
+    ob = obj.arrays
+    su, sv = ob.scale[i]
+    x, y = su * u, sv * v
+    p0, p1 = ob.poff[i], ob.poff[i + 1]
+    P = np.column_stack([ob.px[p0:p1], ob.py[p0:p1]])
+    d, g = frame_terms_numpy(obj, i, u, v)
+    metric = np.array([su, sv])
+
+    def quadratic(row):  # value, gradient, Hessian in (u, v) of one wedge's quadratic
+        w = ob.wc[row]
+        return (w[0] * v * v + w[1] * u * u + w[2] * u * v + w[3] * v + w[4] * u + w[5],
+                np.array([2 * w[1] * u + w[2] * v + w[4], 2 * w[0] * v + w[2] * u + w[3]]),
+                np.array([[2 * w[1], w[2]], [w[2], 2 * w[0]]]))
+
+    dxy = np.array([x, y]) - ob.cen[i]
+    R0 = P - ob.cen[i]
+    between = (R0[:, 0] * dxy[1] - R0[:, 1] * dxy[0] >= 0.0) & (
+        dxy[0] * np.roll(R0, -1, axis=0)[:, 1] - dxy[1] * np.roll(R0, -1, axis=0)[:, 0] > 0.0)
+    k = int(np.argmax(between)) if ob.mode[i] == 0 and between.any() else 0
+    _, grad, hess = quadratic(p0 + k)
+    r2 = float(dxy @ dxy)
+    if ob.mode[i] == 0 and ob.blend > 0.0 and r2 > 1e-24 * (1.0 + float(ob.cen[i] @ ob.cen[i])):
+        theta = np.arctan2(R0[:, 1], R0[:, 0])
+        widths = np.mod(np.roll(theta, -1) - theta, 2 * np.pi)
+        phi = np.arctan2(dxy[1], dxy[0])
+        r = math.sqrt(r2)
+        B, eps = FAN_BLEND_ANGLE, ob.blend
+        band = eps * B / (eps + r * B)
+        wrap = lambda a: np.mod(a + np.pi, 2 * np.pi) - np.pi  # noqa: E731
+        lo_ray, hi_ray = wrap(phi - theta), wrap(phi - np.roll(theta, -1))
+        d_lo = np.where(np.abs(lo_ray) <= np.abs(hi_ray), lo_ray, hi_ray + widths)
+        ends = np.stack([d_lo, d_lo - widths])  # (2, wedges): phi minus each wedge's lower, upper ray
+        if np.any(np.abs(ends / band) < 1.0):  # a ray within the band
+            # derivatives in (u, v) of phi and of b(r), through the metric
+            nrm = dxy * metric
+            dphi = np.array([-dxy[1] * su, dxy[0] * sv]) / r2
+            ddphi = np.array([[2 * dxy[0] * dxy[1] * su * su, (dxy[1] ** 2 - dxy[0] ** 2) * su * sv],
+                              [(dxy[1] ** 2 - dxy[0] ** 2) * su * sv, -2 * dxy[0] * dxy[1] * sv * sv]]) / r2 ** 2
+            dr = nrm / r
+            ddr = (np.diag(metric ** 2) - np.outer(dr, dr)) / r
+            b1, b2 = -eps * B * B / (eps + r * B) ** 2, 2 * eps * B ** 3 / (eps + r * B) ** 3
+            db, ddb = b1 * dr, b2 * np.outer(dr, dr) + b1 * ddr
+            X = ends / band
+            inside = np.abs(X) < 1.0
+            S = np.where(X <= -1, 0.0, np.where(X >= 1, 1.0, 0.5 + X * (15 - 10 * X ** 2 + 3 * X ** 4) / 16))
+            S1 = np.where(inside, 15 * (1 - X ** 2) ** 2 / 16, 0.0)
+            S2 = np.where(inside, -3.75 * X * (1 - X ** 2), 0.0)
+            dX = (dphi[None, None, :] - X[..., None] * db) / band  # (2, wedges, 2)
+            ddX = (ddphi - dX[..., :, None] * db[None, :] - dX[..., None, :] * db[:, None]
+                   - X[..., None, None] * ddb) / band
+            sign = np.array([1.0, -1.0])[:, None]
+            psi = (sign * S).sum(0)
+            dpsi = (sign[..., None] * S1[..., None] * dX).sum(0)
+            ddpsi = (sign[..., None, None] * (S2[..., None, None] * dX[..., :, None] * dX[..., None, :]
+                                              + S1[..., None, None] * ddX)).sum(0)
+            grad, hess = np.zeros(2), np.zeros((2, 2))
+            for q in range(len(P)):
+                gq, gradq, hessq = quadratic(p0 + q)
+                grad += psi[q] * gradq + gq * dpsi[q]
+                hess += psi[q] * hessq + np.outer(dpsi[q], gradq) + np.outer(gradq, dpsi[q]) + gq * ddpsi[q]
+    f = g
+    if d > 0.0:
+        E = np.roll(P, -1, axis=0) - P
+        ee = (E ** 2).sum(1)
+        t = np.where(ee > 0, ((x - P[:, 0]) * E[:, 0] + (y - P[:, 1]) * E[:, 1]) / np.where(ee > 0, ee, 1.0), 0.0)
+        C = P + np.clip(t, 0.0, 1.0)[:, None] * E
+        e = int(np.argmin(((C - [x, y]) ** 2).sum(1)))
+        off = np.array([x, y]) - C[e]
+        K = np.outer(off, off) / (off @ off) if 0.0 < t[e] < 1.0 and len(P) > 1 else np.eye(2)
+        if ob.delta <= 0.0:
+            dpen, ddpen = 2 * ob.alpha * off, 2 * ob.alpha * K
+            f += ob.alpha * d * d
+        else:
+            rr = math.sqrt(d * d + ob.delta ** 2)
+            dpen, ddpen = ob.alpha / rr * off, ob.alpha / rr * (K - np.outer(off, off) / rr ** 2)
+            f += ob.alpha * (rr - ob.delta)
+        grad = grad + metric * dpen
+        hess = hess + np.outer(metric, metric) * ddpen
+    return f, grad[0], grad[1], hess[0, 0], hess[0, 1], hess[1, 1]
+
+
+def hessian_numpy(obj: BakedObjective, spline, c, T):
+    """Twin of :func:`hessian_c`: the same (hb, col, corner), assembled from dense per-sample 6 x 6
+    blocks (the span's coefficients and T) with the samples' spline parameters by bisection."""
+    ob = obj.arrays
+    c = np.asarray(c, float)
+    Msp = spline.span_matrices
+    m, x, _ = _sample_positions_numpy(ob, spline, c)
+    q1 = Msp.shape[1]
+    r = np.arange(q1)
+    M = Msp[m]  # (Ns, power, basis)
+
+    def basis(order):  # (Ns, q1): d^order N_l / dx^order at each sample
+        fall = np.prod([np.maximum(r - j, 0) for j in range(order)], axis=0) if order else np.ones(q1)
+        return np.einsum("jrl,jr->jl", M, fall * x[:, None] ** np.maximum(r - order, 0))
+
+    N = [basis(k) for k in range(5)]
+    cs = c[m[:, None] + r]
+    P1, P2, P3, P4 = ((Nk * cs).sum(1) for Nk in N[1:])
+    pd, pdd = P1 / T, P2 / T ** 2
+    F = np.zeros((len(m), 6))
+    for j in range(len(m)):
+        for side, weight in ((0, 1.0 - ob.fw[j]), (1, ob.fw[j])):
+            if weight > 0.0:
+                F[j] += weight * np.array(frame_second_numpy(obj, ob.fi[j] + side, pdd[j], pd[j] ** 2))
+    f, fu, fv, fuu, fuv, fvv = F.T
+    om, gam = ob.omega, ob.gamma
+    hp = om * (2 * fv - (f + gam) / pd ** 2 + gam)
+    hu = om * fu / pd
+    hpp = om * (4 * pd * fvv - 2 * fv / pd + 2 * (f + gam) / pd ** 3)
+    hpu = om * (2 * fuv - fu / pd ** 2)
+    huu = om * fuu / pd
+    dx = -N[0] / P1[:, None]
+    Jp = np.column_stack([(N[1] + P2[:, None] * dx) / T, -pd / T])  # d p' / d(c_m .. c_{m+b}, T)
+    Ju = np.column_stack([(N[2] + P3[:, None] * dx) / T ** 2, -2 * pdd / T])
+    outer = lambda a, b: a[:, :, None] * b[:, None, :]  # noqa: E731
+    blocks = (hpp[:, None, None] * outer(Jp, Jp) + hpu[:, None, None] * (outer(Jp, Ju) + outer(Ju, Jp))
+              + huu[:, None, None] * outer(Ju, Ju))
+    xlk = -(P2[:, None, None] * outer(dx, dx) + outer(N[1], dx) + outer(dx, N[1])) / P1[:, None, None]
+    d2P1 = outer(N[2], dx) + outer(dx, N[2]) + P3[:, None, None] * outer(dx, dx) + P2[:, None, None] * xlk
+    d2P2 = outer(N[3], dx) + outer(dx, N[3]) + P4[:, None, None] * outer(dx, dx) + P3[:, None, None] * xlk
+    blocks[:, :q1, :q1] += (hp[:, None, None] * d2P1 / T + hu[:, None, None] * d2P2 / T ** 2)
+    cross = -(hp[:, None] * Jp[:, :q1] + 2 * hu[:, None] * Ju[:, :q1]) / T
+    blocks[:, :q1, q1] += cross
+    blocks[:, q1, :q1] += cross
+    blocks[:, q1, q1] += (2 * hp * pd + 6 * hu * pdd) / T ** 2
+    n_c = len(c)
+    H = np.zeros((n_c + 1, n_c + 1))
+    idx = np.concatenate([m[:, None] + r, np.full((len(m), 1), n_c)], axis=1)
+    np.add.at(H, (idx[:, :, None], idx[:, None, :]), blocks)
+    hb = np.zeros((n_c, q1))
+    for o in range(q1):
+        hb[:n_c - o, o] = np.diagonal(H[:n_c, :n_c], o)
+    return hb, H[:n_c, n_c].copy(), float(H[n_c, n_c])
 
 
 # ------------------------------------------------------------------------------------------------
