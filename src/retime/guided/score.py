@@ -410,19 +410,32 @@ def score_table(x, z, coeffs, s, k=3, mask=None, method="exact", eps=0.0, ref_st
         t0, t1 = blocks[b][2:]
         np.matmul(xc[t0:t1], zt, out=G[:t1 - t0])
 
-    with single_threaded_blas(), ThreadPoolExecutor(max_workers=1) as pool:
-        # the next block's matrix product (one BLAS thread) runs while the kNN kernel scans this
-        # block; G is free again once its projections are taken. Blocks and products are the
-        # same as one after the other, so every bit is.
-        pending = pool.submit(product, 0)
-        for b, (j0, j1, t0, t1) in enumerate(blocks):
-            pending.result()
-            _projections(G[:t1 - t0], st, a2, b2, c2, PI, PJ, PK)
-            if b + 1 < len(blocks):
-                pending = pool.submit(product, b + 1)
-            # small dynamic chunks: a thread that the OS preempts does not hold up the other
-            with numba.parallel_chunksize(max(1, (j1 - j0) // (16 * numba.get_num_threads()))):
-                kernel(PI, PJ, PK, zzp, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out)
+    def project(b):  # block b's projections of its product (G is then free again)
+        t0, t1 = blocks[b][2:]
+        _projections(G[:t1 - t0], st, a2, b2, c2, PI, PJ, PK)
+
+    def knn(b):
+        j0, j1, t0, _ = blocks[b]
+        # small dynamic chunks: a thread that the OS preempts does not hold up the other
+        with numba.parallel_chunksize(max(1, (j1 - j0) // (16 * numba.get_num_threads()))):
+            kernel(PI, PJ, PK, zzp, H, t0, j0, j1, n, s, K, a2, b2, c2, mask, out)
+
+    with single_threaded_blas():
+        if len(blocks) == 1:  # nothing to overlap: a worker thread would only add its start and hand-offs
+            product(0)
+            project(0)
+            knn(0)
+            return out
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            # the next block's matrix product (one BLAS thread) runs while the kNN kernel scans this
+            # block. Blocks and products are the same as one after the other, so every bit is.
+            pending = pool.submit(product, 0)
+            for b in range(len(blocks)):
+                pending.result()
+                project(b)
+                if b + 1 < len(blocks):
+                    pending = pool.submit(product, b + 1)
+                knn(b)
     return out
 
 
