@@ -11,8 +11,8 @@ optimizer's w, each c is a normalized cumulative sum of all of them, so the same
   per sample the 6 x 6 block of its span's coefficients and T, J^T (d2h) J plus the first derivatives
   times the second derivatives of p' and p'', with the spline inverse's implicit-function terms; the
   keytimes' terms in :func:`_keytime_hessian`). It costs about one gradient, where the central
-  differences of the gradient with graph colouring it replaces (:func:`banded_hessian`, kept as the
-  tests' reference: the coefficients ``k = r (mod 2 b + 1)`` stepped together) took 2 x 9 (2 x 10 with a
+  differences of the gradient with graph colouring it replaces (the coefficients ``k = r (mod 2 b
+  + 1)`` stepped together; now the tests' reference, tests/_hessian_reference.py) took 2 x 9 (2 x 10 with a
   free duration) for the quartic.
 * **Step:** Newton with a shift (H + (s0 + sigma) I, s0 the least of 0, 1e-12 x 4^k of the largest
   curvature that makes the Cholesky succeed, :func:`definite_shift`; Cholesky of the band by
@@ -144,7 +144,7 @@ class BandedObjective:
 
     def hessian(self, z):
         """(ab, col, corner): the exact Hessian of F at z (:func:`retime.physics.timing.objective.hessian_c`,
-        one pass over the samples, plus the keytimes' terms) in the layout of :func:`banded_hessian`."""
+        one pass over the samples, plus the keytimes' terms) in the upper form of :func:`scipy.linalg.solveh_banded` (``ab``), the T column and its corner."""
         co, pr = self.coords, self.coords.problem
         c, T = co.coefficients(z, self.c0)
         hb, hcol, corner = hessian_c(pr.obj, pr.spline, c, T, workspace=pr.workspace)
@@ -202,45 +202,6 @@ def _basis_second_at(sp, tau):
     return m, out
 
 
-def banded_hessian(fun, z, steps, g=None):
-    """(ab, col, corner): the Hessian of ``fun`` at z by differences of its gradient with graph
-    colouring. ``ab`` is the band of the c-part in the upper form of :func:`scipy.linalg.solveh_banded`
-    (band + 1 rows, the band from the spline: :attr:`BandedCoordinates.band`), ``col`` its T column
-    (None without T), ``corner`` d2F/dT2. ``steps``: the difference step per coordinate. With ``g``,
-    the gradient at z, forward differences (one gradient per colour); without it, central ones (two)."""
-    band = fun.coords.band
-    colours = 2 * band + 1
-    n_c = len(steps) - (1 if fun.coords.free_T else 0)
-    offsets = np.arange(-band, band + 1)
-
-    def change(e):
-        """dg/de along the step e (forward or central)."""
-        return fun(z + e)[1] - g if g is not None else 0.5 * (fun(z + e)[1] - fun(z - e)[1])
-
-    full = np.zeros((2 * band + 1, n_c))  # full[band + j - k, k] = H[j, k], from column k's gradient change
-    for r in range(colours):
-        cols = np.arange(r, n_c, colours)
-        if len(cols) == 0:
-            continue
-        e = np.zeros(len(z))
-        e[cols] = steps[cols]
-        dg = change(e)
-        rows = cols[None, :] + offsets[:, None]  # (2 band + 1, len(cols)): the rows each column reaches
-        inside = (rows >= 0) & (rows < n_c)
-        block = np.where(inside, dg[np.clip(rows, 0, n_c - 1)], 0.0) / steps[cols][None, :]
-        full[:, cols] = block
-    col = corner = None
-    if fun.coords.free_T:
-        e = np.zeros(len(z))
-        e[-1] = steps[-1]
-        dg = change(e) / steps[-1]
-        col, corner = dg[:n_c], float(dg[-1])
-    # upper form: ab[band - off, k] = H[k - off, k], the mean of the entry from column k and from column k - off
-    ab = np.zeros((band + 1, n_c))
-    ab[band] = full[band]
-    for off in range(1, band + 1):
-        ab[band - off, off:] = 0.5 * (full[band - off, off:] + full[band + off, :-off])
-    return ab, col, corner
 
 
 def solve_arrowhead(ab, col, corner, g, shift):
@@ -306,15 +267,6 @@ def _feasible_fraction(coords, z, dz, c0, w_min, w_max):
     return 0.0
 
 
-def difference_steps(coords, z):
-    """Central-difference steps: 1e-9 s of source time per coefficient (more on long clips, where the
-    coefficients' own rounding grows), 1e-9 of the duration. The objective's second derivatives
-    change over distances of 1e-8 s (a sample crossing a region's boundary, where the exact
-    penalty's curvature starts): a larger step averages across them and the model stops predicting."""
-    steps = 1e-9 * np.maximum(1.0, np.abs(z))
-    if coords.free_T:
-        steps[-1] = 1e-9 * abs(z[-1])
-    return steps
 
 
 def newton_inner(fun, z, w_bounds, max_iter=100, gain_tol=1e-11, deadline=None, log=None):
