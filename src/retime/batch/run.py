@@ -173,7 +173,7 @@ def _connect(scheduler: str | None, workers: int | None):
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if _on_main_thread() else None
     try:
         cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                               dashboard_address=":0", silence_logs=logging.ERROR)
+                               dashboard_address=":0", silence_logs=logging.CRITICAL)
     finally:
         if previous is not None:
             signal.signal(signal.SIGINT, previous)
@@ -239,7 +239,14 @@ class _Stop:
 def _quiet_dask_logs():
     """The driver's Dask client logs a lost scheduler or a cancelled task as tracebacks; the batch
     says what happened in its rows and one line. Dask's config gives its loggers levels of their own
-    (distributed.client: warning), so each is quietened, not only their parent."""
+    (distributed.client: warning), so each is quietened, not only their parent.
+
+    A local cluster's workers log too: a stopped batch closes the scheduler while a worker may be
+    mid-heartbeat, and its ERROR traceback followed the batch's one line (a race CI met once).
+    ``silence_logs`` reaches only the nanny's logger in a worker process, so the workers get Dask's
+    logging level in their environment before they are spawned (restarts included); a clip's own
+    failure still reaches its row through the task's exception."""
+    import dask
     import distributed  # noqa: F401 (its loggers exist once it is imported)
 
     names = [n for n in list(logging.root.manager.loggerDict) if n == "distributed" or n.startswith("distributed.")]
@@ -248,7 +255,8 @@ def _quiet_dask_logs():
     for logger in loggers:
         logger.setLevel(logging.CRITICAL + 1)
     try:
-        yield
+        with dask.config.set({"distributed.nanny.pre-spawn-environ.DASK_LOGGING__DISTRIBUTED": "critical"}):
+            yield
     finally:
         for logger, level in zip(loggers, levels):
             logger.setLevel(level)
