@@ -300,15 +300,17 @@ def _grounded(motion, grid_times, warnings):
     flights to find (guided works on any skeleton): all 1, and ``warnings`` says so."""
     from retime.errors import RetimeError
     from retime.phases import flights
-    from retime.motion.feet import foot_contacts
+    from retime.motion.feet import BIPED_SENTENCE, foot_contacts
 
     t = np.asarray(grid_times, dtype=float)
     grounded = np.ones(t.size)
     try:
         contacts = foot_contacts(motion)
     except RetimeError as e:
-        warnings.append(f"no jump flights looked for (the feet's contacts were not found: {str(e).split(' (')[0]}); "
-                        "every frame is pulled to one steady pace (--pace 0 keeps the reference's own pace)")
+        # the detector's error speaks to physics' users; a guided user is told what guided does instead
+        why = str(e).replace(f"{BIPED_SENTENCE} (", "this skeleton is not a two-legged character: ").split("; joints:")[0]
+        warnings.append(f"no jump flights looked for ({why}); every frame is pulled to one steady pace "
+                        "(--pace 0 keeps the reference's own pace)")
         return grounded
     for a, b in flights(contacts, motion.fps, min_frames=1):
         if JUMP_FLIGHT[0] - 1e-9 <= b + 1.0 / motion.fps - a <= JUMP_FLIGHT[1]:
