@@ -25,7 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from physics_converge import float32_copy
+from longclip import SHARED
+from physics_converge import BUNDLED, float32_copy
 from retime.motion import load_motion
 from retime.motion.files import save_motion
 from retime.physics.api import conformed_gravity, make_problem, prepare
@@ -33,9 +34,8 @@ from retime.physics.method import Settings
 from retime.physics.timing.newton import BandedCoordinates, BandedObjective, newton_inner
 from retime.physics.timing.optimize import solve
 
-ROOT = Path(__file__).resolve().parents[1]
-CLIPS = [ROOT / "src/retime/data/cmu" / n for n in ("16_16.amc", "16_06.amc", "16_15.amc", "16_33.amc", "131_01.bvh")] \
-    + [ROOT.parent / "shared/data/cmu" / n for n in ("131_03.bvh", "02_04.bvh")]
+CLIPS = [BUNDLED / n for n in ("16_16.amc", "16_06.amc", "16_15.amc", "16_33.amc", "131_01.bvh")] \
+    + [SHARED / n for n in ("131_03.bvh", "02_04.bvh")]
 
 
 def problem_of(motion, scale):
