@@ -300,15 +300,16 @@ def _grounded(motion, grid_times, warnings):
     flights to find (guided works on any skeleton): all 1, and ``warnings`` says so."""
     from retime.errors import RetimeError
     from retime.phases import flights
-    from retime.motion.feet import BIPED_SENTENCE, foot_contacts
+    from retime.motion.feet import NotTwoLegged, foot_contacts
 
     t = np.asarray(grid_times, dtype=float)
     grounded = np.ones(t.size)
     try:
         contacts = foot_contacts(motion)
     except RetimeError as e:
-        # the detector's error speaks to physics' users; a guided user is told what guided does instead
-        why = str(e).replace(f"{BIPED_SENTENCE} (", "this skeleton is not a two-legged character: ").split("; joints:")[0]
+        # the detector's message speaks to physics' users; a guided user is told why in guided's words
+        why = (f"{e.where}this skeleton is not a two-legged character: {e.why}" if isinstance(e, NotTwoLegged)
+               else str(e))
         warnings.append(f"no jump flights looked for ({why}); every frame is pulled to one steady pace "
                         "(--pace 0 keeps the reference's own pace)")
         return grounded

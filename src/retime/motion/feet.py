@@ -90,6 +90,15 @@ BIPED_SENTENCE = ("physics-based retiming needs a two-legged character (two legs
                   "and this skeleton is not one")
 
 
+class NotTwoLegged(RetimeError):
+    """The skeleton has no two legs ending in feet. ``where`` (``"FILE: "`` or empty) and ``why`` are kept
+    apart from the message so that a method that works on any skeleton can say it in its own words."""
+
+    def __init__(self, where: str, why: str, message: str):
+        self.where, self.why = where, why
+        super().__init__(message)
+
+
 def skeleton_limbs(skeleton) -> Limbs:
     """The skeleton's limbs: those found when it was loaded (:mod:`retime.motion.frame`), else by name."""
     frame = getattr(skeleton, "frame", None)
@@ -101,9 +110,9 @@ def skeleton_limbs(skeleton) -> Limbs:
     if limbs is None:
         why = why or "no joints named like feet"
         where = f"{skeleton.source}: " if skeleton.source else ""
-        raise RetimeError(f"{where}{BIPED_SENTENCE} ({why}; joints: {', '.join(skeleton.names[:12])}"
-                          f"{', ...' if skeleton.n_joints > 12 else ''}). If it is one, name its feet in a body file "
-                          "([feet.left] joint = ...). Guided and linear retiming work on any skeleton.")
+        raise NotTwoLegged(where, why, f"{where}{BIPED_SENTENCE} ({why}; joints: {', '.join(skeleton.names[:12])}"
+                           f"{', ...' if skeleton.n_joints > 12 else ''}). If it is one, name its feet in a body file "
+                           "([feet.left] joint = ...). Guided and linear retiming work on any skeleton.")
     return limbs
 
 
