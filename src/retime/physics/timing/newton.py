@@ -97,7 +97,6 @@ class BandedCoordinates:
         return np.diff(c) / (self.spline.d * T)
 
 
-
 def _keytime_terms(problem, c, T, mu, rho):
     """Augmented-Lagrangian value mu h + rho/2 h^2 of the keytimes and its gradient in (c, T)."""
     from .optimize import _basis_at
@@ -202,8 +201,6 @@ def _basis_second_at(sp, tau):
     return m, out
 
 
-
-
 def solve_arrowhead(ab, col, corner, g, shift):
     """Solve (H + shift I) x = -g for the banded + T-arrow H; None if that is not positive definite."""
     n_c = ab.shape[1]
@@ -265,8 +262,6 @@ def _feasible_fraction(coords, z, dz, c0, w_min, w_max):
         if np.all(w >= w_min) and np.all(w <= w_max) and np.all(np.isfinite(w)):
             return t
     return 0.0
-
-
 
 
 def newton_inner(fun, z, w_bounds, max_iter=100, gain_tol=1e-11, deadline=None, log=None):
