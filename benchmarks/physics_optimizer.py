@@ -70,13 +70,15 @@ def instrument(ledger: Ledger):
     optimize.polish = polish_accounted
 
 
-def build_problem(motion):
+def build_problem(motion, scale=0.5):
+    """The physics method's problem for ``motion`` at ``scale`` times its duration, with the default
+    Settings (regions, baked objective, grid start): (problem, settings)."""
     from retime.physics.api import conformed_gravity, make_problem, prepare
     from retime.physics.method import Settings
 
     s = Settings()
     _, _, _, obj = prepare(motion, conformed_gravity(motion, None), s)
-    return make_problem(obj, motion.duration, 0.5 * motion.duration, (), s.knot_spacing, s.w_min, s.w_max,
+    return make_problem(obj, motion.duration, scale * motion.duration, (), s.knot_spacing, s.w_min, s.w_max,
                         start=s.start), s
 
 

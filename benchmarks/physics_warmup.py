@@ -27,22 +27,15 @@ import numpy as np
 
 from longclip import SHARED
 from physics_converge import BUNDLED, float32_copy
+from physics_optimizer import build_problem
 from retime.motion import load_motion
 from retime.motion.files import save_motion
-from retime.physics.api import conformed_gravity, make_problem, prepare
 from retime.physics.method import Settings
 from retime.physics.timing.newton import BandedCoordinates, BandedObjective, newton_inner
 from retime.physics.timing.optimize import solve
 
 CLIPS = [BUNDLED / n for n in ("16_16.amc", "16_06.amc", "16_15.amc", "16_33.amc", "131_01.bvh")] \
     + [SHARED / n for n in ("131_03.bvh", "02_04.bvh")]
-
-
-def problem_of(motion, scale):
-    s = Settings()
-    _, _, _, obj = prepare(motion, conformed_gravity(motion, None), s)
-    return make_problem(obj, motion.duration, scale * motion.duration, (), s.knot_spacing, s.w_min, s.w_max,
-                        start=s.start)
 
 
 def run_variants(problem, variants, times):
@@ -94,11 +87,11 @@ def main(argv=None):
                 save_motion(m, src)
                 float32_copy(src, cp)
                 m = load_motion(src)
-            pr = problem_of(m, args.scale)
+            pr = build_problem(m, args.scale)[0]
             times = np.arange(0.0, args.scale * m.duration, 1.0 / m.fps)
             runs = run_variants(pr, variants, times)
             if args.float32:
-                f32 = run_variants(problem_of(load_motion(cp), args.scale), variants, times)
+                f32 = run_variants(build_problem(load_motion(cp), args.scale)[0], variants, times)
         ref_obj, ref_curve = runs[0][0].objective, runs[0][2]
         for k, ((lb, nw), (info, sec, curve)) in enumerate(zip(variants, runs)):
             moved = "" if f32 is None else f" f32 move {float(np.max(np.abs(curve - f32[k][2]))) * m.fps:6.3f}"
