@@ -117,7 +117,7 @@ def regularised_least_forces(A, lo, hi, weights, spread, tol=1e-9):
     from .nnls import least_distance_residuals
 
     E, last = _least_distance_problem(A, lo, hi, weights, spread)
-    residual, converged = least_distance_residuals(E, last, 50 * E.shape[1])
+    residual, converged = least_distance_residuals(np.ascontiguousarray(E), last, 50 * E.shape[1])
     return _forces_from_residuals(residual, converged, A, lo, hi, weights, spread, tol)
 
 
@@ -150,7 +150,7 @@ def least_distance_numpy(E, last):
     p = E.shape[0]
     target = np.zeros(p)
     target[-1] = 1.0
-    F = E.copy()
+    F = E.copy(order="K")  # E's own layout (Fortran, as built): the products' summation order
     residual = np.zeros((len(last), p))
     converged = np.zeros(len(last), dtype=bool)
     for k, row in enumerate(last):
@@ -171,18 +171,14 @@ def _forces_from_residuals(residual, converged, A, lo, hi, weights, spread, tol)
     w = np.asarray(weights, dtype=float)
     s = float(spread)
     n = len(w)
-    out = []
-    for r, ok, lo_j, hi_j in zip(residual, converged, np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)):
-        if not ok or abs(r[-1]) <= 1e-12:  # e_last is in the cone of E's columns: incompatible rows
-            out.append(None)
-            continue
-        lam = s * (-r[:n] / r[-1] - 1.0) / w
-        Al = A @ lam
-        if np.any(lam < -tol * s) or np.any(Al < lo_j - tol * s) or np.any(Al > hi_j + tol * s):
-            out.append(None)
-            continue
-        out.append(lam)
-    return out
+    r_last = residual[:, -1:]
+    # e_last in the cone of E's columns (r_last = 0): the rows are incompatible
+    good = np.asarray(converged, dtype=bool) & (np.abs(r_last[:, 0]) > 1e-12)
+    lam = s * (-residual[:, :n] / np.where(good[:, None], r_last, 1.0) - 1.0) / w
+    Al = lam @ np.asarray(A, dtype=float).T
+    good &= ~(np.any(lam < -tol * s, axis=1) | np.any(Al < np.asarray(lo) - tol * s, axis=1)
+              | np.any(Al > np.asarray(hi) + tol * s, axis=1))
+    return [lam[k] if good[k] else None for k in range(len(lam))]
 
 
 class FanModel:
