@@ -8,8 +8,8 @@ with ``unique_vertex_forces``). Here each point starts from the last point's pas
 columns kept while the least-squares answer on them stays positive), then runs Lawson & Hanson's
 loop (*Solving Least Squares Problems*, ch. 23) to the same optimum: its KKT conditions (z >= 0,
 the gradient E^T (t - E z) <= 0 off the passive set, the least-squares answer on it) define the
-residual E z - t uniquely, whatever the start. Least squares by Householder QR of the passive
-columns, plain loops (no BLAS threads, no fastmath): the same bits on any thread count.
+residual E z - t uniquely, whatever the start. Least squares by a Householder QR of the passive
+columns that grows by one reflector per added column (refactored when one leaves), plain loops (no BLAS threads, no fastmath): the same bits on any thread count.
 :func:`.forces.least_distance_numpy` (SciPy's NNLS per point) is the twin of the parity test.
 """
 from __future__ import annotations
@@ -23,58 +23,83 @@ INDEPENDENT = 1e-10
 
 
 @njit(cache=True)
-def _passive_least_squares(E, t, passive, out):
-    """out = argmin |E[:, passive] s - t| (zero off the passive set) by Householder QR; False if
-    the passive columns are dependent to :data:`INDEPENDENT`."""
-    p, q = E.shape
-    cols = np.flatnonzero(passive)
-    k = len(cols)
-    out[:] = 0.0
-    if k == 0:
-        return True
-    if k > p:
+def _add_column(E, j, cols, k, V, vnorm2, R, qtb):
+    """Append column ``j`` of E to the Householder QR of the ``k`` passive columns ``cols[:k]``
+    (reflectors in V's columns, R upper, qtb = Q^T t): its part outside their span becomes one
+    more reflector, O(p k) instead of a new factorisation. False (nothing changed) if that part is
+    below :data:`INDEPENDENT` of the column."""
+    p = E.shape[0]
+    if k >= p:
         return False
-    M = np.empty((p, k))
+    x = E[:, j].copy()
+    norm2 = 0.0
+    for r in range(p):
+        norm2 += x[r] * x[r]
     for c in range(k):
-        M[:, c] = E[:, cols[c]]
-    b = t.copy()
-    for c in range(k):
-        norm_col = 0.0
-        for r in range(p):
-            norm_col += M[r, c] * M[r, c]
-        below = 0.0
-        for r in range(c, p):
-            below += M[r, c] * M[r, c]
-        if below <= (INDEPENDENT * INDEPENDENT) * norm_col or below == 0.0:
-            return False
-        alpha = np.sqrt(below)
-        if M[c, c] > 0.0:
-            alpha = -alpha
-        # Householder vector v = x - alpha e_c, stored in M[c:, c]
-        M[c, c] -= alpha
-        vnorm2 = 0.0
-        for r in range(c, p):
-            vnorm2 += M[r, c] * M[r, c]
-        for j in range(c + 1, k):
-            d = 0.0
-            for r in range(c, p):
-                d += M[r, c] * M[r, j]
-            f = 2.0 * d / vnorm2
-            for r in range(c, p):
-                M[r, j] -= f * M[r, c]
         d = 0.0
         for r in range(c, p):
-            d += M[r, c] * b[r]
-        f = 2.0 * d / vnorm2
+            d += V[r, c] * x[r]
+        f = 2.0 * d / vnorm2[c]
         for r in range(c, p):
-            b[r] -= f * M[r, c]
-        M[c, c] = alpha  # R's diagonal
-    for c in range(k - 1, -1, -1):
-        acc = b[c]
-        for j in range(c + 1, k):
-            acc -= M[c, j] * out[cols[j]]
-        out[cols[c]] = acc / M[c, c]
+            x[r] -= f * V[r, c]
+    below = 0.0
+    for r in range(k, p):
+        below += x[r] * x[r]
+    if below == 0.0 or below <= (INDEPENDENT * INDEPENDENT) * norm2:
+        return False
+    alpha = -np.sqrt(below) if x[k] > 0.0 else np.sqrt(below)
+    for r in range(k):
+        R[r, k] = x[r]
+    R[k, k] = alpha
+    for r in range(k):
+        V[r, k] = 0.0
+    x[k] -= alpha
+    v2 = 0.0
+    for r in range(k, p):
+        V[r, k] = x[r]
+        v2 += x[r] * x[r]
+    vnorm2[k] = v2
+    _reflect(V, vnorm2, k, qtb)
+    cols[k] = j
     return True
+
+
+@njit(cache=True)
+def _reflect(V, vnorm2, c, y):
+    """y <- H_c y, the c-th Householder reflection (its own inverse)."""
+    p = V.shape[0]
+    d = 0.0
+    for r in range(c, p):
+        d += V[r, c] * y[r]
+    f = 2.0 * d / vnorm2[c]
+    for r in range(c, p):
+        y[r] -= f * V[r, c]
+
+
+@njit(cache=True)
+def _refactor(E, t, passive, cols, V, vnorm2, R, qtb):
+    """The QR of the passive columns afresh, in column order; a column dependent on the ones
+    before it leaves the passive set. Returns their number k."""
+    qtb[:] = t
+    k = 0
+    for j in range(E.shape[1]):
+        if passive[j]:
+            if _add_column(E, j, cols, k, V, vnorm2, R, qtb):
+                k += 1
+            else:
+                passive[j] = False
+    return k
+
+
+@njit(cache=True)
+def _solve(cols, k, R, qtb, out):
+    """out = the least squares on the passive columns (R s = Q^T t), zero elsewhere."""
+    out[:] = 0.0
+    for c in range(k - 1, -1, -1):
+        acc = qtb[c]
+        for j in range(c + 1, k):
+            acc -= R[c, j] * out[cols[j]]
+        out[cols[c]] = acc / R[c, c]
 
 
 @njit(cache=True)
@@ -101,17 +126,22 @@ def nnls_warm(E, t, passive, maxiter):
     z = np.zeros(q)
     s = np.zeros(q)
     g = np.zeros(q)
+    cols = np.zeros(p, dtype=np.int64)
+    V = np.zeros((p, p))
+    vnorm2 = np.ones(p)
+    R = np.zeros((p, p))
+    qtb = np.zeros(p)
     # the start: the least squares on the given set, dropping the columns it makes non-positive
     # (or that are dependent) until it is positive on all of them: a feasible Lawson-Hanson state
-    while passive.any():
-        if not _passive_least_squares(E, t, passive, s):
-            passive[np.flatnonzero(passive)[-1]] = False
-            continue
+    k = _refactor(E, t, passive, cols, V, vnorm2, R, qtb)
+    while k > 0:
+        _solve(cols, k, R, qtb, s)
         bad = passive & (s <= 0.0)
         if not bad.any():
             z[:] = s
             break
         passive &= ~bad
+        k = _refactor(E, t, passive, cols, V, vnorm2, R, qtb)
     blocked = np.zeros(q, dtype=np.bool_)
     it = 0
     while True:
@@ -124,21 +154,20 @@ def nnls_warm(E, t, passive, maxiter):
                 j = c
         if j < 0:
             return z, True
+        it += 1
+        if it > maxiter:
+            return z, False
+        if not _add_column(E, j, cols, k, V, vnorm2, R, qtb):
+            blocked[j] = True  # (numerically) in the passive columns' span
+            continue
+        _solve(cols, k + 1, R, qtb, s)
+        if s[j] <= 0.0:  # it cannot grow: undo its reflection, skip it
+            _reflect(V, vnorm2, k, qtb)
+            blocked[j] = True
+            continue
         passive[j] = True
-        entered = True
+        k += 1
         while True:
-            it += 1
-            if it > maxiter:
-                return z, False
-            ok = _passive_least_squares(E, t, passive, s)
-            if entered and (not ok or s[j] <= 0.0):
-                # j is (numerically) in the span of the passive columns, or cannot grow: skip it
-                passive[j] = False
-                blocked[j] = True
-                break
-            entered = False
-            if not ok:
-                return z, False
             # step from z towards s until the first passive column reaches zero; it leaves
             alpha = 2.0
             leaving = -1
@@ -152,6 +181,9 @@ def nnls_warm(E, t, passive, maxiter):
                 z[:] = s
                 blocked[:] = False
                 break
+            it += 1
+            if it > maxiter:
+                return z, False
             for c in range(q):
                 if passive[c]:
                     z[c] += alpha * (s[c] - z[c])
@@ -160,7 +192,8 @@ def nnls_warm(E, t, passive, maxiter):
                 if passive[c] and z[c] <= 0.0:
                     z[c] = 0.0
                     passive[c] = False
-    return z, True
+            k = _refactor(E, t, passive, cols, V, vnorm2, R, qtb)
+            _solve(cols, k, R, qtb, s)
 
 
 @njit(cache=True)
