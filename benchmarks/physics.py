@@ -21,7 +21,7 @@ control point moved by 20% of its neighbours' span and locked): the editor's ans
 Targets (issue 4, this 2-core machine): Force + Feasible + Bake <= 1 ms per frame for 16_16; Obj <= 0.2
 us per frame; C1000 Force <= 1 ms per frame; re-convergence <= 50 ms for a 500-frame clip.
 
-Usage: python3 benchmarks/physics.py [--repeat N (default 3)] [--json] [--cases 16_16,C10,...]
+Usage: python3 benchmarks/physics.py [--repeat N (default 3)] [--json] [--cases 16_16,C10,...] [--unique-vertex-forces]
 --json prints one JSON object per case with keys case, force_ms, feasible_ms, bake_ms, obj_ms,
 np_obj_ms, naive_ms (and more), then one with case "reconverge".
 """
@@ -90,14 +90,14 @@ def _terms_fn(case):
     return (lambda: chain_terms(n, fps=30.0, quats=quats)), 100
 
 
-def run_case(case, repeat):
+def run_case(case, repeat, unique_vertex_forces=False):
     make_terms, n_frames = _terms_fn(case)
     make_terms()  # compile / load kernels
     terms, t_force, c_force = _best(lambda: make_terms(), repeat)
     pd, t_comb, c_comb = _best(lambda: terms.combine(), repeat)
     t_force += t_comb
     c_force += c_comb
-    opts = RegionOptions(body_weight=(pd.total_mass or 1.0) * 9.81)
+    opts = RegionOptions(body_weight=(pd.total_mass or 1.0) * 9.81, unique_vertex_forces=unique_vertex_forces)
     compute_regions(pd, opts, frames=np.arange(min(5, len(pd.times))))
     rs, t_feas, c_feas = _best(lambda: compute_regions(pd, opts), repeat)
     target = np.asarray(pd.b) + np.asarray(pd.c) - pd.N.forces(rs.lam0)
@@ -183,11 +183,13 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--cases", default="16_16,C10,C100,C1000")
+    ap.add_argument("--unique-vertex-forces", action="store_true",
+                    help="the regions' vertex forces made unique (RegionOptions.unique_vertex_forces)")
     args = ap.parse_args(argv)
     rows = []
     prepared = None
     for case in args.cases.split(","):
-        row, prep = run_case(case, args.repeat)
+        row, prep = run_case(case, args.repeat, args.unique_vertex_forces)
         rows.append(row)
         prepared = prepared or prep
         if args.json:

@@ -210,6 +210,75 @@ def test_simplex_twin_real(real):
     _check_simplex(lps)
 
 
+# ------------------------------------------------------------------------ vertex forces' NNLS
+
+def _vertex_least_distance_problems(monkeypatch, clip, frames):
+    """The least-distance problems of a clip's polygon vertices (``unique_vertex_forces``), as the
+    regions pose them: (E, last rows, A, lo, hi, weights, spread) per frame."""
+    from retime.physics.model.dynamics import dynamics_terms
+    from retime.physics.regions import RegionOptions, compute_regions
+    from retime.physics.regions import forces as F
+
+    problems = []
+    build = F._least_distance_problem
+
+    def recorded(A, lo, hi, weights, spread):
+        E, last = build(A, lo, hi, weights, spread)
+        if len(last) > 1:  # a polygon's vertices (the centre poses one point)
+            problems.append((E, last, A, lo, hi, weights, spread))
+        return E, last
+
+    monkeypatch.setattr(F, "_least_distance_problem", recorded)
+    pd = dynamics_terms(load_motion(bundled_path(clip))).combine()
+    compute_regions(pd, RegionOptions(workers=1, unique_vertex_forces=True), frames=frames)
+    return problems
+
+
+def test_vertex_nnls_twin_real(monkeypatch):
+    """The warm-started compiled NNLS gives SciPy's minimiser on every vertex of 16_16's frames (the
+    residual to 1e-9 of its size, the forces to 1e-8 body weights), whatever order the vertices come in
+    (its start is the previous vertex's passive set: reversed, every start differs)."""
+    from retime.physics.regions import forces as F
+    from retime.physics.regions.nnls import least_distance_residuals
+
+    problems = _vertex_least_distance_problems(monkeypatch, "16_16.amc", np.arange(0, 510, 9))
+    assert sum(len(p[1]) for p in problems) >= 500
+    for E, last, A, lo, hi, weights, spread in problems:
+        ref, ref_ok = F.least_distance_numpy(E, last)
+        got, ok = least_distance_residuals(E, last, 50 * E.shape[1])
+        back, back_ok = least_distance_residuals(E, np.ascontiguousarray(last[::-1]), 50 * E.shape[1])
+        assert ref_ok.all() and ok.all() and back_ok.all()
+        scale = np.abs(ref).max()
+        assert np.abs(got - ref).max() <= 1e-9 * scale
+        assert np.abs(back[::-1] - ref).max() <= 1e-9 * scale
+        lam_ref = F._forces_from_residuals(ref, ref_ok, A, lo, hi, weights, spread, 1e-6)
+        lam_got = F._forces_from_residuals(got, ok, A, lo, hi, weights, spread, 1e-6)
+        for a, b in zip(lam_ref, lam_got):
+            assert (a is None) == (b is None)
+            if a is not None:
+                assert np.abs(a - b).max() <= 1e-8 * spread
+
+
+def test_vertex_nnls_twin_random():
+    """Random NNLS problems (wide and tall, some with dependent columns), from a random passive set:
+    the compiled solve's residual is SciPy's."""
+    from scipy.optimize import nnls
+
+    from retime.physics.regions.nnls import nnls_warm
+
+    rng = np.random.default_rng(11)
+    for trial in range(300):
+        p, q = int(rng.integers(2, 20)), int(rng.integers(2, 60))
+        E = rng.normal(size=(p, q))
+        if trial % 3 == 0 and q >= 4:  # dependent columns: the last two mix the first two
+            E[:, -2:] = E[:, :2] @ rng.normal(size=(2, 2))
+        t = rng.normal(size=p)
+        z_ref, _ = nnls(E, t, maxiter=50 * q)
+        z, ok = nnls_warm(E, t, rng.random(q) < 0.5, 50 * q)
+        assert ok and np.all(z >= 0)
+        assert np.abs((E @ z - t) - (E @ z_ref - t)).max() <= 1e-9 * (1 + np.abs(t).max())
+
+
 # ---------------------------------------------------------------------------------------- objective
 
 def _wiggly(obj, scale, seed, n=40):

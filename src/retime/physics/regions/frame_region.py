@@ -52,8 +52,8 @@ class RegionOptions:
     # at each vertex (forces.unique_vertex_forces: unique, moves <= 1e-4 of its size). On, a float32
     # copy's timing is within 0.1 source frame on 19 of 33 clips (15 off), median 0.074 (0.16), but
     # 16_16 0.014 -> 0.43 and AV_8Walk 1.2 -> 2.8 (nearby minima; README), and Fig. 12's Feasible
-    # stage costs 3x (16_16 0.50 -> 1.51 ms a frame, over issue 4's 1 ms for Force + Feasible + Bake):
-    # off until the vertex solves are cheaper
+    # stage costs about 0.45 ms a frame more (16_16 under load: 0.75-0.89 -> 1.26-1.38; SciPy's NNLS
+    # per vertex cost 1.7 more, regions.nnls now): off until the lead decides
     unique_vertex_forces: bool = False
     workers: int | None = None  # processes for many frames (default: all cores, at most 2)
 
