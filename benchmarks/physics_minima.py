@@ -17,7 +17,7 @@ Then, for each optimizer in ``--methods``:
   one the optimizer's path reaches, not on the rounding's size.
 
     python3 benchmarks/physics_minima.py                         # bundled clips
-    python3 benchmarks/physics_minima.py CLIP ... --methods newton,lbfgs --scale 0.5
+    python3 benchmarks/physics_minima.py CLIP ... --methods newton,lbfgs --scale 0.5 --knot-spacing 0.2
 """
 from __future__ import annotations
 
@@ -93,9 +93,11 @@ def main(argv=None):
     ap.add_argument("clips", nargs="*")
     ap.add_argument("--scale", type=float, default=0.5)
     ap.add_argument("--methods", default="newton", help="optimizers, comma-separated (default: newton)")
+    ap.add_argument("--knot-spacing", type=float, default=None,
+                    help="the timing spline's knot spacing, output seconds (default: physics' Settings)")
     args = ap.parse_args(argv)
     clips = args.clips or sorted(str(p) for p in BUNDLED.glob("*") if p.suffix in (".amc", ".bvh"))
-    settings = Settings()
+    settings = Settings() if args.knot_spacing is None else Settings(knot_spacing=args.knot_spacing)
     print(f"{'clip':34s} {'method':7s} {'starts':>6s} {'data':>8s} {'own':>6s} {'same':>6s} {'barrier':>8s} "
           f"{'iterations':>11s}  objective orig / f32")
     for c in clips:
