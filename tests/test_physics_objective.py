@@ -306,3 +306,19 @@ def test_torque_term_is_smooth_across_the_fan_rays():
                                   (cy + r * np.sin(th + s * 1e-9 / r)) / sv) for s in (-1, 1)]
             kinked += abs(g[1][1] - g[0][1]) + abs(g[1][2] - g[0][2]) > 1e-4 * (1 + abs(g[0][1]) + abs(g[0][2]))
     assert kinked > 10
+
+
+@pytest.mark.parametrize("stride", [1, 2, 4])
+def test_a_subsampled_objective_is_the_one_baked_with_fewer_samples(setup, stride):
+    """subsampled(obj, k): the samples, trapezoid weights and frames that samples() gives for 4 / k
+    samples per frame, and so the same objective value as baking at that density."""
+    pd, rs, target = setup
+    obj = O.bake(pd, rs, target)
+    sub = O.subsampled(obj, stride)
+    s, om, fi, fw = O.samples(rs.times, 4 // stride)
+    a = sub.arrays
+    assert np.allclose(a.s, s, rtol=0, atol=1e-12) and np.allclose(a.omega, om, rtol=0, atol=1e-12)
+    assert np.array_equal(a.fi, fi) and np.array_equal(a.fw, fw)
+    direct = O.bake(pd, rs, target, samples_per_frame=4 // stride)
+    sp = _wiggly_spline(rs.times[-1], 0.8 * rs.times[-1])
+    assert O.evaluate(sub, sp) == pytest.approx(O.evaluate(direct, sp), rel=1e-12)

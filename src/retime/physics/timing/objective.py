@@ -38,6 +38,7 @@ coefficients c and the duration T (each sample touches the spline's ``support`` 
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -137,6 +138,23 @@ def samples(times, samples_per_frame=4, interp="nearest"):
     om[-1] = ds[-1] / 2
     om[1:-1] = (ds[:-1] + ds[1:]) / 2
     return s, om, fi.astype(np.int64), fw
+
+
+def subsampled(obj: BakedObjective, stride: int) -> BakedObjective:
+    """The same objective integrated on every ``stride``-th sample (the last one kept), with the
+    trapezoid weights of that coarser spacing: what :func:`samples` gives for ``samples_per_frame /
+    stride`` samples per frame, without baking again (the frames' coefficients are shared)."""
+    a = obj.arrays
+    idx = np.arange(0, len(a.s), int(stride))
+    if idx[-1] != len(a.s) - 1:
+        idx = np.append(idx, len(a.s) - 1)
+    s = a.s[idx]
+    ds = np.diff(s)
+    om = np.empty_like(s)
+    om[0] = ds[0] / 2
+    om[-1] = ds[-1] / 2
+    om[1:-1] = (ds[:-1] + ds[1:]) / 2
+    return dataclasses.replace(obj, arrays=a._replace(s=s, omega=om, fi=a.fi[idx], fw=a.fw[idx]))
 
 
 def target_torques(kind, pd0, regions0):
