@@ -206,16 +206,18 @@ def test_the_quick_stage_solves_at_half_the_samples_and_reports_the_full_objecti
     cps = sess.control_points()
     k = len(cps) // 2
     sess.move(k, 0.5 * (cps[k]["source_time"] + cps[k + 1]["source_time"]), lock=True)
+    moved = sess.objective()
     preview = sess.preview_problem()
     assert PREVIEW_STRIDE == 2 and len(preview.obj.arrays.s) == (len(obj.arrays.s) - 1) // 2 + 1
     assert preview.spline is sess.spline
     info = sess.reconverge(quick=True)
     assert not info.converged and info.message.startswith("quick")
-    assert info.objective == sess.objective()  # the full objective, not the preview's
+    assert info.objective == sess.objective() < moved  # the full objective, not the preview's, and lower
     t = np.linspace(0.0, sess.spline.duration, 500)
     quick = sess.spline(t)
     sess.reconverge()
-    assert np.max(np.abs(quick - sess.spline(t))) <= 0.01  # source seconds (6.5 ms measured)
+    # source seconds: 6.5 ms measured; loose, since the polish may settle in a nearby minimum (1-2 frames)
+    assert np.max(np.abs(quick - sess.spline(t))) <= 0.02
 
 
 def _kkt_by_differences(pr, w, h=1e-7):
