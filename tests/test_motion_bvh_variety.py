@@ -227,9 +227,12 @@ def test_reading_closes_the_file():
 
     from retime.data import bundled_path
 
+    gc.collect()  # earlier tests' garbage (sockets, pipes) warns when collected: not this reader's
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         load_motion(bundled_path("131_01.bvh"))
         load_motion(bundled_path("16_06.amc"))
         gc.collect()
-    assert not [w for w in caught if issubclass(w.category, ResourceWarning)]
+    # only the files read here: another test's thread may still drop a handle of its own meanwhile
+    read = ("131_01.bvh", "16_06.amc", "16.asf")
+    assert not [w for w in caught if issubclass(w.category, ResourceWarning) and any(n in str(w.message) for n in read)]
